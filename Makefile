@@ -1,0 +1,43 @@
+# psurf: two commands. `make demo` and `make test` each create .venv when it is missing.
+PY      ?= python3
+VENV    := .venv
+VPY     := $(VENV)/bin/python
+STAMP   := $(VENV)/.installed
+export MPLBACKEND := Agg
+
+.PHONY: demo test test-slow bench lint venv clean
+
+venv: $(STAMP)
+
+# Installs everything the project needs into .venv. VTK's wheels render off-screen through
+# EGL or OSMesa when there is no X server; libgl/libegl/osmesa come from Debian when missing.
+$(STAMP): pyproject.toml
+	@if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1 && \
+	    ! ldconfig -p 2>/dev/null | grep -q libOSMesa; then \
+	    echo ">> installing system GL libraries (apt-get)"; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	        libgl1 libegl1 libosmesa6 libxrender1 >/dev/null) || \
+	    echo ">> apt-get failed; off-screen rendering may be unavailable"; \
+	fi
+	$(PY) -m venv $(VENV)
+	$(VPY) -m pip install -q --upgrade pip
+	$(VPY) -m pip install -q -e ".[dev]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VPY) app.py demo
+
+test: $(STAMP)
+	$(VPY) -m pytest -q -m "not slow"
+
+test-slow: $(STAMP)
+	$(VPY) -m pytest -q -m slow
+
+bench: $(STAMP)
+	$(VPY) benchmarks/run.py
+
+lint: $(STAMP)
+	$(VPY) -m ruff check .
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

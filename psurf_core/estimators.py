@@ -1,0 +1,97 @@
+"""Estimator specs: what ``--estimator`` accepts, parsed into techniques and a weighting.
+
+Grammar (the CLI contract):
+
+* ``reference`` - the volumetric path tracer (ground truth);
+* a registered technique name, with ``-short`` where it has a short variant;
+* ``mis:A+B+...`` (balance heuristic) / ``mis-power:A+B+...`` (power heuristic, beta = 2);
+* presets (``paper-single``, ``paper-multi``, ``paper-full``) where registered in :data:`PRESETS`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .scene import Scene, SceneError
+from .techniques import REGISTRY, Technique, UnknownTechnique, get_technique
+
+
+@dataclass(frozen=True)
+class Estimator:
+    """A parsed estimator.
+
+    Attributes
+    ----------
+    spec : str
+        The text it was parsed from.
+    groups : tuple of tuple of Technique
+        Each group is estimated independently and summed; a group of two or more techniques
+        is combined by MIS (``weighting``). A single technique is a group of one.
+    weighting : str or None
+        ``"balance"``, ``"power"`` or ``None`` (no MIS).
+    reference : bool
+        The path tracer rather than photon techniques.
+    """
+
+    spec: str
+    groups: tuple = ()
+    weighting: str | None = None
+    reference: bool = False
+    notes: tuple = field(default=())  # warnings for the user (dropped members, ...)
+
+    @property
+    def techniques(self) -> tuple[Technique, ...]:
+        return tuple(t for g in self.groups for t in g)
+
+    @property
+    def kernel(self) -> bool:
+        return any(t.kernel_dim > 0 for t in self.techniques)
+
+
+#: Preset name -> callable(scene) -> Estimator; filled by the MIS module when it is present.
+PRESETS: dict = {}
+
+
+def estimator_help() -> str:
+    """One line per estimator name, for ``--help``."""
+    lines = ["reference: volumetric path tracer with NEE + phase-sampling MIS (ground truth)"]
+    for name, e in REGISTRY.items():
+        suffix = " [-short]" if e.has_short else ""
+        lines.append(f"{name}{suffix}: {e.summary}")
+    for name in PRESETS:
+        lines.append(f"{name}: preset (see README)")
+    lines.append("mis:A+B+... / mis-power:A+B+...: MIS of photon-surface techniques")
+    return "\n".join(lines)
+
+
+def parse_estimator(spec: str, scene: Scene | None = None) -> Estimator:
+    """Parse an estimator spec; with a ``scene``, check that it applies to some light.
+
+    Raises
+    ------
+    UnknownTechnique
+        For names that are not registered or misuse ``-short``.
+    SceneError
+        When no technique of the spec applies to any light of ``scene``.
+    """
+    spec = spec.strip()
+    if spec == "reference":
+        return Estimator(spec, reference=True)
+    if spec in PRESETS:
+        return PRESETS[spec](spec, scene)
+    if spec.endswith("-short") and spec[: -len("-short")] in PRESETS:
+        raise UnknownTechnique(f"preset '{spec[:-6]}' has no short variant")
+    if spec.startswith(("mis:", "mis-power:")):
+        return _mis.parse_mis(spec, scene)
+    tech = get_technique(spec)
+    if scene is not None and not any(tech.applies_to(lt) for lt in scene.lights):
+        kinds = sorted({lt.kind for lt in scene.lights})
+        raise SceneError(
+            f"{scene.path}: estimator '{spec}' applies to no light of this scene "
+            f"(lights: {', '.join(kinds)})"
+        )
+    return Estimator(spec, groups=((tech,),))
+
+
+# The MIS module registers the presets; imported last because it builds on this module.
+from . import mis as _mis  # noqa: E402,F401

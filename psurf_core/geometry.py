@@ -1,0 +1,230 @@
+"""Ray tests against the medium box and everything that blocks light.
+
+Blockers are the black occluders *and* the emitters (area and mesh lights are opaque,
+SCENES.md). All tests are vectorized over rays/segments; triangle tests run in chunks so
+that ``rays x triangles`` work never exceeds a fixed number of elements.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .constants import PARALLEL_EPS, SHADOW_EPS
+from .scene import AreaLight, BoxOccluder, MeshLight, MeshOccluder, Scene, SphereOccluder
+
+#: Elements (rays x triangles) processed per chunk by the numpy triangle test.
+_TRI_CHUNK = 1 << 21
+
+
+def ray_box(o: np.ndarray, d: np.ndarray, bmin: np.ndarray, bmax: np.ndarray):
+    """Slab test of rays against one axis-aligned box.
+
+    Parameters
+    ----------
+    o, d : (N, 3) float
+        Origins and directions (need not be unit; distances are in units of ``|d|``).
+    bmin, bmax : (3,) float
+
+    Returns
+    -------
+    t_enter, t_exit : (N,) float
+        The ray is inside for ``t_enter < t < t_exit``; a miss has ``t_enter >= t_exit``.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / np.where(np.abs(d) < PARALLEL_EPS, PARALLEL_EPS, d)
+        t0 = (bmin - o) * inv
+        t1 = (bmax - o) * inv
+    lo = np.minimum(t0, t1)
+    hi = np.maximum(t0, t1)
+    return lo.max(axis=-1), hi.min(axis=-1)
+
+
+def inside_box(x: np.ndarray, bmin: np.ndarray, bmax: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+    """(N,) bool: points ``x`` (N, 3) inside the closed box (with tolerance ``eps``)."""
+    return np.all((x >= bmin - eps) & (x <= bmax + eps), axis=-1)
+
+
+def ray_sphere(o, d, center, radius):
+    """Both roots of ``|o + t d - c| = r`` for unit ``d``; NaN where the ray misses.
+
+    Returns
+    -------
+    t_near, t_far : (N,) float
+    """
+    oc = o - center
+    b = np.einsum("ij,ij->i", oc, d)
+    c = np.einsum("ij,ij->i", oc, oc) - radius * radius
+    disc = b * b - c
+    sq = np.sqrt(np.where(disc >= 0.0, disc, np.nan))
+    return -b - sq, -b + sq
+
+
+def ray_parallelogram(o, d, corner, edge_u, edge_v):
+    """Hit distance of rays with the parallelogram ``corner + u eu + v ev`` (inf on a miss)."""
+    n = np.cross(edge_u, edge_v)
+    denom = d @ n
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((corner - o) @ n) / denom
+    p = o + t[:, None] * d - corner
+    # Solve p = u eu + v ev in the least-squares sense via the Gram matrix.
+    g = np.array([[edge_u @ edge_u, edge_u @ edge_v], [edge_u @ edge_v, edge_v @ edge_v]])
+    rhs = np.stack([p @ edge_u, p @ edge_v], axis=-1)
+    uv = rhs @ np.linalg.inv(g).T
+    ok = (np.abs(denom) > PARALLEL_EPS) & np.all((uv >= 0.0) & (uv <= 1.0), axis=-1)
+    return np.where(ok & np.isfinite(t), t, np.inf)
+
+
+def ray_triangles_first(o, d, tris, t_min, t_max):
+    """Nearest hit in ``(t_min, t_max)`` of rays with any triangle (Moller-Trumbore).
+
+    Parameters
+    ----------
+    o, d : (N, 3) float
+    tris : (F, 3, 3) float
+    t_min, t_max : (N,) float
+
+    Returns
+    -------
+    (N,) float
+        Nearest hit distance, ``inf`` where none.
+    """
+    n, f = o.shape[0], tris.shape[0]
+    best = np.full(n, np.inf)
+    if n == 0 or f == 0:
+        return best
+    # Coarse pass: only rays whose interval meets the mesh's bounding box are tested.
+    lo, hi = tris.reshape(-1, 3).min(0) - 1e-9, tris.reshape(-1, 3).max(0) + 1e-9
+    te, tx = ray_box(o, d, lo, hi)
+    cand = np.flatnonzero((te < tx) & (tx > t_min) & (te < t_max))
+    v0 = tris[:, 0]
+    e1 = tris[:, 1] - v0
+    e2 = tris[:, 2] - v0
+    step = max(1, _TRI_CHUNK // f)
+    for a in range(0, cand.size, step):
+        idx = cand[a : a + step]
+        oo, dd = o[idx, None, :], d[idx, None, :]
+        pvec = np.cross(dd, e2[None])
+        det = np.einsum("ijk,jk->ij", pvec, e1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / det
+            tvec = oo - v0[None]
+            u = np.einsum("ijk,ijk->ij", tvec, pvec) * inv
+            qvec = np.cross(tvec, e1[None])
+            v = np.einsum("ijk,ijk->ij", np.broadcast_to(dd, qvec.shape), qvec) * inv
+            t = np.einsum("ijk,jk->ij", qvec, e2) * inv
+        ok = (
+            (np.abs(det) > 1e-14)
+            & (u >= 0.0)
+            & (v >= 0.0)
+            & (u + v <= 1.0)
+            & (t > t_min[idx, None])
+            & (t < t_max[idx, None])
+        )
+        t = np.where(ok, t, np.inf)
+        best[idx] = t.min(axis=1)
+    return best
+
+
+@dataclass(frozen=True)
+class Blockers:
+    """Everything opaque in a scene: sphere/box/mesh occluders and area/mesh emitters.
+
+    Build with :func:`blockers_of`; query with :meth:`first_hit` and :meth:`occluded`.
+    """
+
+    sphere_c: np.ndarray  # (S, 3)
+    sphere_r: np.ndarray  # (S,)
+    box_min: np.ndarray  # (B, 3)
+    box_max: np.ndarray  # (B, 3)
+    quads: tuple  # of (corner, edge_u, edge_v)
+    triangles: np.ndarray  # (F, 3, 3), all mesh occluders and mesh lights
+
+    @property
+    def empty(self) -> bool:
+        return (
+            self.sphere_r.size == 0
+            and self.box_min.shape[0] == 0
+            and not self.quads
+            and self.triangles.shape[0] == 0
+        )
+
+    def first_hit(self, o, d, t_min=None, t_max=None) -> np.ndarray:
+        """Distance to the first blocker along unit rays, in ``(t_min, t_max)``.
+
+        Parameters
+        ----------
+        o, d : (N, 3) float
+        t_min, t_max : (N,) float, optional
+            Defaults ``SHADOW_EPS`` and ``inf``.
+
+        Returns
+        -------
+        (N,) float
+            ``inf`` where nothing is hit.
+        """
+        n = o.shape[0]
+        t_min = np.full(n, SHADOW_EPS) if t_min is None else np.asarray(t_min, float)
+        t_max = np.full(n, np.inf) if t_max is None else np.asarray(t_max, float)
+        best = np.full(n, np.inf)
+
+        def keep(t):
+            t = np.where(np.isfinite(t) & (t > t_min) & (t < t_max), t, np.inf)
+            np.minimum(best, t, out=best)
+
+        for c, r in zip(self.sphere_c, self.sphere_r, strict=True):
+            t0, t1 = ray_sphere(o, d, c, r)
+            keep(np.where(t0 > t_min, t0, t1))
+        for lo, hi in zip(self.box_min, self.box_max, strict=True):
+            te, tx = ray_box(o, d, lo, hi)
+            hit = te < tx
+            keep(np.where(hit, np.where(te > t_min, te, tx), np.inf))
+        for corner, eu, ev in self.quads:
+            keep(ray_parallelogram(o, d, corner, eu, ev))
+        if self.triangles.shape[0]:
+            keep(ray_triangles_first(o, d, self.triangles, t_min, np.minimum(t_max, best)))
+        return best
+
+    def occluded(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(N,) bool: is the open segment ``a -> b`` (N, 3) blocked?
+
+        Both ends are shrunk by ``SHADOW_EPS`` so the surface a vertex sits on (an emitter)
+        does not block its own segment.
+        """
+        n = a.shape[0]
+        if self.empty or n == 0:
+            return np.zeros(n, dtype=bool)
+        v = b - a
+        length = np.linalg.norm(v, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = v / np.where(length > 0, length, 1.0)[:, None]
+        hit = self.first_hit(a, d, np.full(n, SHADOW_EPS), length - SHADOW_EPS)
+        return np.isfinite(hit)
+
+
+def blockers_of(scene: Scene) -> Blockers:
+    """Collect a scene's opaque surfaces (occluders and emitters) into one :class:`Blockers`."""
+    sc, sr, bmin, bmax, quads, tris = [], [], [], [], [], []
+    for oc in scene.occluders:
+        if isinstance(oc, SphereOccluder):
+            sc.append(oc.center)
+            sr.append(oc.radius)
+        elif isinstance(oc, BoxOccluder):
+            bmin.append(oc.min)
+            bmax.append(oc.max)
+        elif isinstance(oc, MeshOccluder):
+            tris.append(oc.triangles)
+    for lt in scene.lights:
+        if isinstance(lt, AreaLight):
+            quads.append((lt.corner, lt.edge_u, lt.edge_v))
+        elif isinstance(lt, MeshLight):
+            tris.append(lt.triangles)
+    return Blockers(
+        sphere_c=np.array(sc, dtype=float).reshape(-1, 3),
+        sphere_r=np.array(sr, dtype=float),
+        box_min=np.array(bmin, dtype=float).reshape(-1, 3),
+        box_max=np.array(bmax, dtype=float).reshape(-1, 3),
+        quads=tuple(quads),
+        triangles=np.concatenate(tris, axis=0) if tris else np.zeros((0, 3, 3)),
+    )

@@ -1,0 +1,201 @@
+"""Reconstructed paths: the record every technique builds for a hit, and the pdfs MIS needs.
+
+A hit of any technique implies one full photon path (spec section 2: the sampled dimensions
+are the photon's, the integrated ones the hit's roots). :class:`PathRecord` holds the last
+(up to) three segments of that path in the spec's notation, ``x_3 -> x_2 -> x_1 -> x_0``
+with ``x_{k-1} = x_k + t_k w_k`` and ``x_0 = y(s)`` on the camera ray. Everything earlier is
+sampled identically by every technique, so its pdf cancels in MIS weights.
+
+Densities are *relative*: each technique's ``density(rec)`` returns ``Q`` without the factors
+every technique of that scatter count shares:
+
+* ``K >= 3``: ``q_{<= w3}`` (dims up to and including ``w3``) is dropped;
+* ``K = 2``: the light-position pdf is dropped (``x2`` is on the light);
+* ``K = 1``: nothing is dropped (the single-scattering table of section 3.2 as written).
+
+:class:`Pdfs` gives the elementary pdfs on a record so that every technique's ``Q`` is one
+line from the spec's tables.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from .sampling import INV_4PI, phase_value
+from .scene import AreaLight, MeshLight, PointLight, Scene
+
+KIND_CODE = {"point": 0, "area": 1, "mesh": 2}
+
+
+@dataclass
+class PathRecord:
+    """The last segments of the full path a hit implies (H hits, leading axis H).
+
+    Attributes
+    ----------
+    K : (H,) int
+        Scatter count.
+    light, kind, tri : (H,) int
+        Light index, light kind code (:data:`KIND_CODE`), mesh triangle (-1 otherwise).
+    uv : (H, 2) float
+        Light-surface coordinates of the light vertex (parallelogram or barycentric).
+    axis : (H, 3) float
+        ``a`` (point light) or ``n_L``/``n_k`` at the light vertex.
+    eu, ev : (H, 3) float
+        Parallelogram edges / triangle edges ``v1 - v0, v2 - v0`` (zeros for point lights).
+    x3, x2, x1, x0 : (H, 3) float
+        Vertices; ``x_K`` is the light, vertices beyond it are NaN.
+    w3, w2, w1 : (H, 3) float
+        Unit directions (NaN beyond the light).
+    t3, t2, t1 : (H,) float
+        Segment lengths (NaN beyond the light).
+    psi : (H, 3) float
+        Camera-ray direction.
+    s : (H,) float
+        Distance of ``x0`` along the camera ray.
+    """
+
+    K: np.ndarray
+    light: np.ndarray
+    kind: np.ndarray
+    tri: np.ndarray
+    uv: np.ndarray
+    axis: np.ndarray
+    eu: np.ndarray
+    ev: np.ndarray
+    x3: np.ndarray
+    x2: np.ndarray
+    x1: np.ndarray
+    x0: np.ndarray
+    w3: np.ndarray
+    w2: np.ndarray
+    w1: np.ndarray
+    t3: np.ndarray
+    t2: np.ndarray
+    t1: np.ndarray
+    psi: np.ndarray
+    s: np.ndarray
+
+    def __len__(self) -> int:
+        return self.K.shape[0]
+
+    def with_(self, **changes) -> PathRecord:
+        return replace(self, **changes)
+
+    def select(self, idx) -> PathRecord:
+        return PathRecord(**{f.name: getattr(self, f.name)[idx] for f in fields(self)})
+
+    @property
+    def A3(self) -> np.ndarray:
+        """(H, 3) the revolution axis of section 3.3: ``w3``, or the light axis when ``K = 2``."""
+        return np.where((self.K == 2)[:, None], self.axis, self.w3)
+
+
+def photon_record(paths, photon: np.ndarray, K: np.ndarray, scene: Scene, rays,
+                  ray: np.ndarray, s: np.ndarray) -> PathRecord:
+    """A record filled with the photon's own sampled path (tracer vertex ``j`` is ``x_{K-j}``).
+
+    Techniques then replace the integrated dimensions (and what they rebuild) with the
+    hit's values via :meth:`PathRecord.with_`.
+    """
+    h = photon.shape[0]
+    nan3 = np.full((h, 3), np.nan)
+
+    def vert(k):  # x_k = tracer vertex K - k
+        j = K - k
+        ok = j >= 0
+        out = nan3.copy()
+        out[ok] = paths.x[photon[ok], j[ok]]
+        return out
+
+    def seg(k, arr, width):  # w_k / t_k = tracer segment K - k + 1 (index K - k)
+        j = K - k
+        ok = j >= 0
+        out = np.full((h, width), np.nan) if width else np.full(h, np.nan)
+        out[ok] = arr[photon[ok], j[ok]]
+        return out
+
+    light = paths.light[photon]
+    eu = np.zeros((h, 3))
+    ev = np.zeros((h, 3))
+    kind = np.zeros(h, dtype=np.int64)
+    for li, lt in enumerate(scene.lights):
+        sel = light == li
+        kind[sel] = KIND_CODE[lt.kind]
+        if isinstance(lt, AreaLight):
+            eu[sel], ev[sel] = lt.edge_u, lt.edge_v
+        elif isinstance(lt, MeshLight):
+            tr = lt.triangles[paths.tri[photon[sel]]]
+            eu[sel], ev[sel] = tr[:, 1] - tr[:, 0], tr[:, 2] - tr[:, 0]
+    psi = rays.d[ray]
+    return PathRecord(
+        K=K, light=light, kind=kind, tri=paths.tri[photon], uv=paths.light_uv[photon],
+        axis=paths.light_normal[photon], eu=eu, ev=ev,
+        x3=vert(3), x2=vert(2), x1=vert(1), x0=rays.o[ray] + s[:, None] * psi,
+        w3=seg(3, paths.w, 3), w2=seg(2, paths.w, 3), w1=seg(1, paths.w, 3),
+        t3=seg(3, paths.t, 0), t2=seg(2, paths.t, 0), t1=seg(1, paths.t, 0),
+        psi=psi, s=s,
+    )
+
+
+class Pdfs:
+    """Elementary sampling pdfs evaluated on a record (all (H,) float).
+
+    Attributes
+    ----------
+    t1, t2, t3 : free-flight pdfs ``st exp(-st t_k)``.
+    w1, w2 : solid-angle pdfs of ``w_k``: the phase function about ``w_{k+1}``, or the
+        emission pdf when ``x_k`` is the light (``1/(4 pi)`` point, ``cos/pi`` area/mesh).
+    c1, c2 : pdfs of ``cos th_k`` (``2 pi`` times the direction pdf: azimuthal symmetry).
+    ph : ``1 / (2 pi)``, the pdf of any azimuth.
+    uv : joint light-position pdf on the unit square (1) or a triangle (``2 P_k``).
+    u, v : marginal pdfs of ``u`` and ``v`` (1, or ``2 P_k (1 - u)``, ``2 P_k (1 - v)``).
+    """
+
+    def __init__(self, rec: PathRecord, scene: Scene):
+        med = scene.medium
+        st, g = med.sigma_t, med.phase.g
+        with np.errstate(invalid="ignore", over="ignore"):
+            self.t1 = st * np.exp(-st * rec.t1)
+            self.t2 = st * np.exp(-st * rec.t2)
+            self.t3 = st * np.exp(-st * rec.t3)
+        self.w1 = np.where(rec.K == 1, _emission_pdf(rec, rec.w1),
+                           phase_value(_dot(rec.w2, rec.w1), g))
+        self.w2 = np.where(rec.K == 2, _emission_pdf(rec, rec.w2),
+                           phase_value(_dot(rec.w3, rec.w2), g))
+        self.c1 = 2.0 * np.pi * self.w1
+        self.c2 = 2.0 * np.pi * self.w2
+        self.ph = np.full(len(rec), 1.0 / (2.0 * np.pi))
+        pk = _triangle_pmf(rec, scene)
+        mesh = rec.kind == KIND_CODE["mesh"]
+        self.uv = np.where(mesh, 2.0 * pk, 1.0)
+        self.u = np.where(mesh, 2.0 * pk * (1.0 - rec.uv[:, 0]), 1.0)
+        self.v = np.where(mesh, 2.0 * pk * (1.0 - rec.uv[:, 1]), 1.0)
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _emission_pdf(rec: PathRecord, w: np.ndarray) -> np.ndarray:
+    """Solid-angle emission pdf of direction ``w`` at the light vertex of each record."""
+    with np.errstate(invalid="ignore"):
+        cos = _dot(rec.axis, w)
+    return np.where(rec.kind == KIND_CODE["point"], INV_4PI, np.clip(cos, 0.0, None) / np.pi)
+
+
+def _triangle_pmf(rec: PathRecord, scene: Scene) -> np.ndarray:
+    """``P_k = A_k / A_tot`` of each record's emitting triangle (0 for other lights)."""
+    out = np.zeros(len(rec))
+    for li, lt in enumerate(scene.lights):
+        if isinstance(lt, MeshLight):
+            sel = (rec.light == li) & (rec.tri >= 0)
+            out[sel] = lt.areas[rec.tri[sel]] / lt.area
+    return out
+
+
+def light_kinds(scene: Scene) -> set[str]:
+    """The kinds of light present in ``scene``."""
+    return {lt.kind for lt in scene.lights if isinstance(lt, PointLight | AreaLight | MeshLight)}

@@ -1,0 +1,236 @@
+"""One pass (Trace -> Create -> Intersect -> Evaluate -> image) and the progressive render.
+
+Everything random in pass ``i`` comes from ``SeedSequence([seed, i])``: its first child drives
+the camera-ray jitter, its second the photons (in fixed-size batches, each with its own
+grandchild), so a pass is the same wherever and whenever it runs, whatever the memory budget.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .accumulate import Welford
+from .binning import candidate_pairs
+from .camera import Rays, camera_rays
+from .constants import DEFAULT_MEMORY_BUDGET_MIB
+from .estimators import Estimator
+from .geometry import Blockers, blockers_of
+from .scene import Scene
+from .techniques.base import PassContext, Technique
+from .trace import trace
+
+#: Photons traced together; fixed (not derived from the memory budget) so images do not
+#: depend on the budget.
+PHOTON_BATCH = 1 << 15
+
+#: Rough peak bytes per candidate ray-primitive pair in intersect + evaluate.
+_BYTES_PER_PAIR = 1200
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Per-pass budget of a photon estimator (the reference uses ``spp`` only).
+
+    Attributes
+    ----------
+    photons : int
+        Photons emitted per pass.
+    spp : int
+        Camera rays per pixel per pass.
+    radius : float or None
+        Initial kernel radius ``r_0`` (scene units) for kernel techniques; ``None`` takes
+        each technique's ``default_radius_fraction`` of the medium box diagonal.
+    radius_shrink : float
+        ``alpha`` of the progressive schedule ``r_i = r_0 gamma_i^(1/d)``,
+        ``gamma_i = prod_{k<i} (k + alpha)/(k + 1)``; 1 keeps the radius fixed.
+    memory_budget_mib : int
+        Bound on the chunked rays x primitives work.
+    """
+
+    photons: int = 20_000
+    spp: int = 1
+    radius: float | None = None
+    radius_shrink: float = 1.0
+    memory_budget_mib: int = DEFAULT_MEMORY_BUDGET_MIB
+
+    @property
+    def max_pairs(self) -> int:
+        return max(4096, self.memory_budget_mib * (1 << 20) // _BYTES_PER_PAIR)
+
+
+def pass_generators(seed: int, pass_index: int):
+    """The pass's ``(ray_rng, photon_seedseq)``."""
+    ss = np.random.SeedSequence([int(seed), int(pass_index)])
+    ray_ss, photon_ss = ss.spawn(2)
+    return np.random.default_rng(ray_ss), photon_ss
+
+
+def kernel_radius(tech: Technique, scene: Scene, settings: RenderSettings, pass_index: int):
+    """Kernel radius of ``tech`` in pass ``pass_index`` (0-based) of the progressive schedule."""
+    if tech.kernel_dim == 0:
+        return 0.0
+    r0 = settings.radius
+    if r0 is None:
+        r0 = tech.default_radius_fraction * scene.medium.diagonal
+    a = settings.radius_shrink
+    k = np.arange(1, pass_index + 1, dtype=float)
+    gamma = float(np.prod((k + a) / (k + 1.0)))
+    return float(r0 * gamma ** (1.0 / tech.kernel_dim))
+
+
+@dataclass
+class PassRecord:
+    """What one pass computed, kept when asked (the UI's step-through reads it)."""
+
+    rays: Rays | None = None
+    paths: list = field(default_factory=list)  # one PhotonPaths per batch
+    prims: dict = field(default_factory=dict)  # (technique name, batch) -> Primitives
+    hits: dict = field(default_factory=dict)  # (technique name, batch) -> (Hits, values)
+
+
+def _accumulate(img: np.ndarray, pixel: np.ndarray, values: np.ndarray) -> None:
+    n = img.shape[0]
+    for c in range(3):
+        img[:, c] += np.bincount(pixel, weights=values[:, c], minlength=n)
+
+
+def photon_pass(
+    scene: Scene,
+    estimator: Estimator,
+    rays: Rays,
+    photon_ss: np.random.SeedSequence,
+    settings: RenderSettings,
+    pass_index: int,
+    blockers: Blockers,
+    record: PassRecord | None = None,
+) -> np.ndarray:
+    """Sum of per-photon contributions per ray (R, 3), not yet divided by the photon count."""
+    out = np.zeros((len(rays), 3))
+    n_batches = -(-settings.photons // PHOTON_BATCH)
+    batch_ss = photon_ss.spawn(n_batches)
+    for b in range(n_batches):
+        n = min(PHOTON_BATCH, settings.photons - b * PHOTON_BATCH)
+        paths = trace(scene, n, np.random.default_rng(batch_ss[b]), blockers=blockers)
+        if record is not None:
+            record.paths.append(paths)
+        for group in estimator.groups:
+            for tech in group:
+                ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, pass_index),
+                                  pass_index, settings.max_pairs)
+                prims = tech.create(paths, ctx)
+                if record is not None:
+                    record.prims[(tech.name, b)] = prims
+                for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi,
+                                                 settings.max_pairs):
+                    hits = tech.intersect(prims, rays, ray, prim, ctx)
+                    if len(hits) == 0:
+                        continue
+                    val = tech.evaluate(hits, prims, paths, rays, ctx)
+                    if len(group) > 1:
+                        from .mis import mis_weights
+
+                        val = val * mis_weights(tech, group, estimator.weighting, hits, prims,
+                                                paths, rays, ctx)[:, None]
+                    if record is not None:
+                        record.hits.setdefault((tech.name, b), []).append((hits, val))
+                    _accumulate(out, hits.ray, val)
+    return out
+
+
+def render_pass(
+    scene: Scene,
+    estimator: Estimator,
+    pass_index: int,
+    seed: int,
+    settings: RenderSettings,
+    *,
+    blockers: Blockers | None = None,
+    pixels: np.ndarray | None = None,
+    record: PassRecord | None = None,
+) -> np.ndarray:
+    """Render pass ``pass_index``: the per-pixel estimate of this pass alone.
+
+    Parameters
+    ----------
+    pixels : (Q,) int, optional
+        Flat pixel indices to estimate (others stay 0); all by default. A pixel's value does
+        not depend on which other pixels are rendered.
+
+    Returns
+    -------
+    (H, W, 3) float64
+    """
+    cam = scene.camera
+    blockers = blockers_of(scene) if blockers is None else blockers
+    ray_rng, photon_ss = pass_generators(seed, pass_index)
+    rays = camera_rays(scene, settings.spp, ray_rng, pixels=pixels, blockers=blockers)
+    if record is not None:
+        record.rays = rays
+    if estimator.reference:
+        from .reference import reference_pass
+
+        per_ray = reference_pass(scene, rays, np.random.default_rng(photon_ss), blockers)
+    else:
+        per_ray = photon_pass(scene, estimator, rays, photon_ss, settings, pass_index,
+                              blockers, record) / settings.photons
+    img = np.zeros((cam.n_pixels, 3))
+    _accumulate(img, rays.pixel, per_ray / settings.spp)
+    return img.reshape(cam.height, cam.width, 3)
+
+
+@dataclass
+class RenderResult:
+    """A progressive render: the mean image, per-pass variance and provenance."""
+
+    mean: np.ndarray  # (H, W, 3) float64
+    var: np.ndarray  # (H, W, 3) float64, variance of one pass's estimate
+    passes: int
+    photons_per_pass: int
+    spp: int
+    seconds: float
+    estimator: str
+    seed: int
+    accumulator: Welford | None = None
+
+
+def render(
+    scene: Scene,
+    estimator: Estimator,
+    settings: RenderSettings,
+    *,
+    passes: int | None = None,
+    time_budget: float | None = None,
+    seed: int = 0,
+    accumulator: Welford | None = None,
+    on_pass: Callable[[int, Welford, float], bool | None] | None = None,
+) -> RenderResult:
+    """Progressive render: whole passes until ``passes`` are done or ``time_budget`` seconds
+    are spent (the pass in flight finishes; at least one pass runs).
+
+    ``accumulator`` continues an earlier render (its ``n`` passes are skipped, so the result
+    equals an uninterrupted run with the same seed). ``on_pass(i, acc, elapsed)`` is called
+    after every pass; returning ``False`` stops early.
+    """
+    if passes is None and time_budget is None:
+        passes = 1
+    cam = scene.camera
+    acc = accumulator if accumulator is not None else Welford.empty((cam.height, cam.width, 3))
+    blockers = blockers_of(scene)
+    t0 = time.perf_counter()
+    done_before = acc.n
+    while True:
+        i = acc.n
+        acc.add(render_pass(scene, estimator, i, seed, settings, blockers=blockers))
+        elapsed = time.perf_counter() - t0
+        if on_pass is not None and on_pass(i, acc, elapsed) is False:
+            break
+        if passes is not None and acc.n >= passes:
+            break
+        if time_budget is not None and elapsed >= time_budget and acc.n > done_before:
+            break
+    return RenderResult(acc.mean.copy(), acc.variance, acc.n, settings.photons, settings.spp,
+                        time.perf_counter() - t0, estimator.spec, seed, acc)

@@ -1,0 +1,223 @@
+"""The Technique protocol and the records that flow through Create -> Intersect -> Evaluate.
+
+A technique (one estimator family member such as ``planes`` or ``cone-short``) is an object
+with the small interface of :class:`Technique`. The render pass (``render.py``) calls
+
+``create(paths, ctx) -> Primitives``      one primitive per (photon, scatter count K)
+``intersect(prims, rays, ray, prim, ctx)`` roots of candidate pairs -> :class:`Hits`
+``evaluate(hits, prims, paths, rays, ctx)`` per-hit per-photon contribution ``X`` (H, 3)
+
+and never allocates a full ``rays x primitives`` array: the candidate pairs come from
+``binning.py`` in bounded chunks. Contributions are per photon (the spec's ``X_p``, carrying
+the full emitted power); the pass divides by photons emitted and by rays per pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry import Blockers, inside_box
+from ..scene import Scene
+
+
+@dataclass
+class PassContext:
+    """What every stage of one pass may read.
+
+    Attributes
+    ----------
+    scene : Scene
+    blockers : Blockers
+    radius : float
+        Kernel radius of this pass for kernel (biased) techniques, else unused.
+    pass_index : int
+    max_pairs : int
+        Ray-primitive candidate pairs per chunk (from the memory budget).
+    """
+
+    scene: Scene
+    blockers: Blockers
+    radius: float = 0.0
+    pass_index: int = 0
+    max_pairs: int = 1 << 21
+
+
+@dataclass
+class Primitives:
+    """Photon primitives of one technique for one pass (struct of arrays, leading axis M).
+
+    Attributes
+    ----------
+    technique : str
+    photon : (M,) int
+        Photon (row of :class:`~psurf_core.trace.PhotonPaths`) the primitive was made from.
+    K : (M,) int
+        Scatter count of the paths this primitive estimates.
+    lo, hi : (M, 3) float
+        World-space bounds, clipped to the medium box (drive screen-space binning).
+    data : dict of str to (M, ...) ndarray
+        Family-specific geometry (origins, axes, sampled lengths, ...).
+    """
+
+    technique: str
+    photon: np.ndarray
+    K: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    data: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return self.photon.shape[0]
+
+
+@dataclass
+class Hits:
+    """Camera-ray/primitive hits as flat parallel arrays (leading axis H).
+
+    Attributes
+    ----------
+    ray, prim : (H,) int
+        Indices into the pass's :class:`~psurf_core.camera.Rays` and :class:`Primitives`.
+    s : (H,) float
+        Distance of the hit along the camera ray.
+    data : dict of str to (H, ...) ndarray
+        The roots of the integrated dimensions and anything evaluate needs.
+    """
+
+    ray: np.ndarray
+    prim: np.ndarray
+    s: np.ndarray
+    data: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return self.ray.shape[0]
+
+    def select(self, mask: np.ndarray) -> Hits:
+        return Hits(self.ray[mask], self.prim[mask], self.s[mask],
+                    {k: v[mask] for k, v in self.data.items()})
+
+
+class Technique:
+    """Base class of every technique; subclasses fill in the three stages.
+
+    Class attributes
+    ----------------
+    name : str
+        Registry name (``planes``, ``beams-long``, ``cone-short``, ...).
+    family : str
+        Primitive family for drawing and legends (``points``, ``beams``, ``planes``, ...).
+    kernel_dim : int
+        Blur dimension of a kernel estimator (3 points, 2 BRE, 1 beams); 0 if unbiased.
+    min_k, max_k : int
+        Scatter counts the technique can produce (``max_k`` None: unbounded).
+    lights : tuple of str
+        Light kinds it applies to.
+    """
+
+    name = "?"
+    family = "?"
+    kernel_dim = 0
+    min_k = 1
+    max_k: int | None = None
+    lights = ("point", "area", "mesh")
+    short = False
+
+    # ---------------------------------------------------------------- which paths
+    def k_range(self, scene: Scene, depth: int) -> range:
+        """Scatter counts K this technique estimates in ``scene`` with ``depth`` traced segments."""
+        hi = depth if scene.max_scatter < 0 else min(scene.max_scatter, depth)
+        if self.max_k is not None:
+            hi = min(hi, self.max_k)
+        return range(max(self.min_k, scene.min_scatter), hi + 1)
+
+    def can_produce(self, K: np.ndarray, kind: np.ndarray) -> np.ndarray:
+        """(H,) bool: can this technique produce paths of scatter count ``K`` from lights of
+        kind code ``kind`` (:data:`psurf_core.path_record.KIND_CODE`)?"""
+        from ..path_record import KIND_CODE
+
+        ok = K >= self.min_k
+        if self.max_k is not None:
+            ok &= K <= self.max_k
+        codes = np.array([KIND_CODE[k] for k in self.lights])
+        return ok & np.isin(kind, codes)
+
+    def applies_to(self, light) -> bool:
+        return light.kind in self.lights
+
+    def light_mask(self, paths, scene: Scene) -> np.ndarray:
+        """(P,) bool: photons emitted by a light this technique applies to."""
+        ok = np.array([self.applies_to(lt) for lt in scene.lights], dtype=bool)
+        return ok[paths.light]
+
+    # ---------------------------------------------------------------- the stages
+    def create(self, paths, ctx: PassContext) -> Primitives:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def intersect(self, prims: Primitives, rays, ray: np.ndarray, prim: np.ndarray,
+                  ctx: PassContext) -> Hits:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def evaluate(self, hits: Hits, prims: Primitives, paths, rays,
+                 ctx: PassContext) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    # ---------------------------------------------------------------- MIS (Reconstruct)
+    def reconstruct(self, hits: Hits, prims: Primitives, paths, rays, ctx: PassContext):
+        """The full path (:class:`~psurf_core.path_record.PathRecord`) each hit implies."""
+        raise NotImplementedError(f"{self.name} has no MIS reconstruction")
+
+    def density(self, rec, ctx: PassContext) -> np.ndarray:
+        """Effective density ``Q = q |n . psi|`` of this technique on records ``rec`` (H,),
+        without the factors shared by every technique (see ``path_record``)."""
+        raise NotImplementedError(f"{self.name} has no MIS density")
+
+
+# ------------------------------------------------------------------------- shared helpers
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of (N, 3) arrays."""
+    return np.einsum("ij,ij->i", a, b)
+
+
+def camera_transmittance(scene: Scene, rays, ray_idx: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``exp(-st (s - s_min))``: the camera segment is attenuated only inside the box."""
+    return np.exp(-scene.medium.sigma_t * (s - rays.s_min[ray_idx]))
+
+
+def on_ray(rays, ray_idx: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """(H,) bool: ``y(s)`` lies on the ray's in-medium, unblocked interval."""
+    return (s > rays.s_min[ray_idx]) & (s < rays.s_max[ray_idx])
+
+
+def in_medium(scene: Scene, x: np.ndarray) -> np.ndarray:
+    """(H,) bool: points (H, 3) inside the medium box."""
+    return inside_box(x, scene.medium.bounds_min, scene.medium.bounds_max)
+
+
+def segments_clear(blockers: Blockers, *pairs) -> np.ndarray:
+    """(H,) bool: every segment ``(a, b)`` given is unoccluded (one shadow test each)."""
+    ok = None
+    for a, b in pairs:
+        if ok is None:
+            ok = np.ones(a.shape[0], dtype=bool)
+        idx = np.flatnonzero(ok)
+        if idx.size:
+            ok[idx] = ~blockers.occluded(a[idx], b[idx])
+    return ok
+
+
+def clip_bounds(scene: Scene, lo: np.ndarray, hi: np.ndarray):
+    """Intersect per-primitive bounds (M, 3) with the medium box."""
+    return (np.maximum(lo, scene.medium.bounds_min), np.minimum(hi, scene.medium.bounds_max))
+
+
+def ray_bounds(origin: np.ndarray, direction: np.ndarray, length: np.ndarray | None):
+    """Bounds of segments (``length`` given) or of rays to infinity (``length`` None)."""
+    if length is not None:
+        end = origin + length[:, None] * direction
+        return np.minimum(origin, end), np.maximum(origin, end)
+    inf = np.full_like(origin, np.inf)
+    lo = np.where(direction < 0, -inf, origin)
+    hi = np.where(direction > 0, inf, origin)
+    return lo, hi
