@@ -355,7 +355,8 @@ def _png_writer(linear_rgb):
 
 
 def cmd_render(args) -> int:
-    from psurf_core import RenderSettings, render
+    from psurf_core import RenderSettings
+    from psurf_core.render import render
 
     _check_output("--out", args.out)
     if args.png is not None:
@@ -498,8 +499,9 @@ def cmd_demo(args) -> int:
 
 def _demo_offline(scene, args) -> int:
     """Render the demo estimators, write their images and the comparison, print a summary."""
-    from psurf_core import RenderSettings, SceneError, parse_estimator, render
+    from psurf_core import RenderSettings, SceneError, parse_estimator
     from psurf_core import images as im
+    from psurf_core.render import render
 
     settings = RenderSettings(photons=args.photons, spp=1)
     results, ests, written = {}, {}, []

@@ -11,11 +11,11 @@ Estimators
     :func:`parse_estimator` (``"planes"``, ``"reference"``, ``"mis:A+B"``, ... -> ``Estimator``;
     raises :class:`~psurf_core.techniques.UnknownTechnique` or :class:`SceneError`).
 Rendering
-    :func:`render` (progressive: whole passes until a pass count or a time budget),
-    :func:`render_pass` (one pass's image), :class:`RenderSettings` (photons, spp, kernel
+    :func:`psurf_core.render.render` (progressive: whole passes until a pass count or a time
+    budget), :func:`render_pass` (one pass's image), :class:`RenderSettings` (photons, spp, kernel
     radius, memory budget), :class:`RenderResult` (mean, per-pass variance, provenance).
 Building blocks
-    :func:`trace` (photon paths), :func:`camera_rays` (jittered camera rays),
+    :func:`psurf_core.trace.trace` (photon paths), :func:`camera_rays` (jittered camera rays),
     :class:`Welford` (mean and variance across passes, exact merge).
 
 ``__version__`` is the package version (``pyproject.toml``). Image helpers (tone mapping,
@@ -23,9 +23,9 @@ false colour) live in :mod:`psurf_core.images`.
 
 Notes
 -----
-``render`` and ``trace`` are also the names of submodules; they are imported here eagerly so
-that ``psurf_core.render`` and ``psurf_core.trace`` are the functions (use
-``import psurf_core.render as m`` or ``from psurf_core.render import ...`` for the modules).
+``render`` and ``trace`` are submodules (the stages); their functions of the same name are
+reached as ``psurf_core.render.render`` and ``psurf_core.trace.trace`` so that the package
+attribute is never a function shadowing its module.
 """
 
 from __future__ import annotations
@@ -35,10 +35,9 @@ __version__ = "0.1.0"
 from .accumulate import Welford  # noqa: E402
 from .camera import camera_rays  # noqa: E402
 from .estimators import parse_estimator  # noqa: E402
-from .render import RenderResult, RenderSettings, render, render_pass  # noqa: E402
+from .render import RenderResult, RenderSettings, render_pass  # noqa: E402
 from .scene import Scene, SceneError  # noqa: E402
 from .scene_io import load_scene  # noqa: E402
-from .trace import trace  # noqa: E402
 
 __all__ = [
     "RenderResult",
@@ -50,7 +49,5 @@ __all__ = [
     "camera_rays",
     "load_scene",
     "parse_estimator",
-    "render",
     "render_pass",
-    "trace",
 ]
