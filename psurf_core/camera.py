@@ -26,6 +26,9 @@ class Rays:
         Flat pixel index ``row * width + col`` (row 0 = top).
     spp : int
         Rays per pixel.
+    origin : (3,) float or None
+        The common origin of all rays (a pinhole camera), which lets techniques move work
+        from ray-primitive pairs to primitives; ``None`` when origins differ.
     """
 
     o: np.ndarray
@@ -34,6 +37,7 @@ class Rays:
     s_max: np.ndarray
     pixel: np.ndarray
     spp: int
+    origin: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.d.shape[0]
@@ -41,7 +45,7 @@ class Rays:
     def subset(self, idx: np.ndarray) -> Rays:
         """The rays at ``idx`` (keeps ``spp`` for bookkeeping only)."""
         return Rays(self.o[idx], self.d[idx], self.s_min[idx], self.s_max[idx],
-                    self.pixel[idx], self.spp)
+                    self.pixel[idx], self.spp, self.origin)
 
 
 def _tan_half(cam: Camera) -> float:
@@ -143,4 +147,4 @@ def camera_rays(
     d = pixel_directions(cam, col + jx, row + jy)
     o = np.broadcast_to(cam.position, d.shape).copy()
     s_min, s_max = clip_rays(scene, o, d, blockers)
-    return Rays(o, d, s_min, s_max, pix, spp)
+    return Rays(o, d, s_min, s_max, pix, spp, np.array(cam.position, dtype=float))

@@ -73,17 +73,26 @@ class PhotonPlane(Technique):
     # ------------------------------------------------------------------ Intersect
     def intersect(self, prims, rays, ray, prim, ctx) -> Hits:
         d = prims.data
-        x2, w2, w1 = d["x2"][prim], d["w2"][prim], d["w1"][prim]
-        psi, c = rays.d[ray], rays.o[ray]
-        # Cramer's rule for [w2 w1 -psi] (t2, t1, s) = c - x2.
-        b = c - x2
-        n = np.cross(w1, w2)  # scaled normal; |det| = |n . psi|
-        det = dot(n, psi)  # det[w2, w1, -psi] = -(w2 . (w1 x psi)) = (w1 x w2) . psi
+        psi = rays.d[ray]
+        # Cramer's rule for [w2 w1 -psi] (t2, t1, s) = c - x2 = b. With triple-product
+        # identities every determinant is a dot product of psi with a per-primitive vector:
+        #   det = (w1 x w2).psi, t2 det = (w1 x b).psi, t1 det = (b x w2).psi,
+        #   s det = w2.(w1 x b).
+        # For a pinhole camera b depends on the primitive only, so the pairs cost 3 dots.
+        if rays.origin is not None:
+            if "m" not in d:
+                d.update(_plane_solver(d["x2"], d["w2"], d["w1"], rays.origin))
+            m, sdet = d["m"][prim], d["sdet"][prim]
+        else:
+            m, sdet = _plane_solver(d["x2"][prim], d["w2"][prim], d["w1"][prim], rays.o[ray])
+            m, sdet = m["m"], m["sdet"]
+        v = np.einsum("ijk,ik->ij", m, psi)  # (H, 3): det, t2 det, t1 det
+        det = v[:, 0]
         with np.errstate(divide="ignore", invalid="ignore"):
             inv = 1.0 / det
-            t2 = dot(b, np.cross(w1, -psi)) * inv
-            t1 = dot(w2, np.cross(b, -psi)) * inv
-            s = dot(w2, np.cross(w1, b)) * inv
+            t2 = v[:, 1] * inv
+            t1 = v[:, 2] * inv
+            s = sdet * inv
         ok = np.isfinite(inv) & (t2 > 0) & (t1 > 0) & on_ray(rays, ray, s)
         if self.short:
             ok &= (t2 < d["T2"][prim]) & (t1 < d["T1"][prim])
@@ -127,3 +136,17 @@ class PhotonPlane(Technique):
         if self.short:
             q = q * np.exp(-ctx.scene.medium.sigma_t * (rec.t1 + rec.t2))
         return q
+
+
+def _plane_solver(x2, w2, w1, c):
+    """Per-primitive vectors of the plane solve (see ``PhotonPlane.intersect``).
+
+    Returns
+    -------
+    dict with ``m`` (M, 3, 3): rows ``w1 x w2``, ``w1 x b``, ``b x w2``; ``sdet`` (M,):
+    ``w2 . (w1 x b)``, where ``b = c - x2``.
+    """
+    b = c - x2
+    w1xb = np.cross(w1, b)
+    m = np.stack([np.cross(w1, w2), w1xb, np.cross(b, w2)], axis=1)
+    return {"m": m, "sdet": dot(w2, w1xb)}
