@@ -13,10 +13,10 @@ venv: $(STAMP)
 # EGL or OSMesa when there is no X server; libgl/libegl/osmesa come from Debian when missing.
 $(STAMP): pyproject.toml
 	@if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1 && \
-	    ! ldconfig -p 2>/dev/null | grep -q libOSMesa; then \
+	    ! (ldconfig -p 2>/dev/null | grep -q libOSMesa && ldconfig -p | grep -q libEGL_mesa); then \
 	    echo ">> installing system GL libraries (apt-get)"; \
 	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
-	        libgl1 libegl1 libosmesa6 libxrender1 >/dev/null) || \
+	        libgl1 libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6 libxrender1 >/dev/null) || \
 	    echo ">> apt-get failed; off-screen rendering may be unavailable"; \
 	fi
 	$(PY) -m venv $(VENV)

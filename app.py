@@ -126,12 +126,13 @@ def build_parser() -> Parser:
               demo [SCENE.toml] [--out DIR]                      interactive app, or (without a
                                                                  display) planes vs reference
                                                                  images in DIR
+              screenshot SCENE.toml --stage STAGE --pixel X,Y    one step of the app, off-screen
 
             Run 'python app.py render --help' for the render options."""),
         epilog=f"estimators (--estimator NAME):\n{estimators}",
     )
     top.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="{render,demo}", parser_class=Parser)
+    sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot}", parser_class=Parser)
 
     r = sub.add_parser(
         "render",
@@ -211,6 +212,10 @@ def build_parser() -> Parser:
                    help=argparse.SUPPRESS)
     d.add_argument("--seed", type=_nonneg_int, default=DEFAULT_SEED, help=argparse.SUPPRESS)
     d.set_defaults(func=cmd_demo)
+
+    from ui.cli import add_screenshot_parser  # the UI owns the screenshot command
+
+    add_screenshot_parser(sub)
     return top
 
 
@@ -611,7 +616,7 @@ def main(argv: list[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         if getattr(args, "func", None) is None:
-            raise CliError("a subcommand is required: render or demo (see --help)")
+            raise CliError("a subcommand is required: render, demo or screenshot (see --help)")
         return args.func(args)
     except (CliError, SceneError) as e:
         print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)

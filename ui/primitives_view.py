@@ -1,0 +1,416 @@
+"""Trace and Create in 3D: photon subpaths and the primitives swept from them (pyvista).
+
+Subpaths are polylines clipped to the medium box (``PhotonPaths.clip``), one colour per scatter
+event. Primitives are drawn as geometry clipped to the box, one colour per family
+(:data:`ui.scene_view.FAMILY_COLOURS`): points as spheres of the kernel radius, beams as tubes,
+planes and light copies as polygons, and spheres, cones, cylinders, disks and surfaces of
+revolution as parametric surfaces. A family the drawer does not know (or whose data layout
+changed) falls back to its primitives' bounding boxes, and the legend says so.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyvista as pv
+
+from .scene_view import (
+    FONT,
+    FONT_SMALL,
+    LINE,
+    add_text,
+    family_colour,
+    medium_bounds,
+    pt,
+    px,
+    scale_of,
+)
+
+#: Default number of photon subpaths drawn (``+``/``-`` in the window change it).
+DEFAULT_PATHS = 24
+#: At most this many primitives per technique in the Create view.
+MAX_PRIMS = 60
+#: Colour map of scatter events (perceptually uniform, colour-blind safe).
+PATH_CMAP = "viridis"
+#: Scatter events get distinct colours up to this index; deeper ones share the last colour.
+MAX_EVENT_COLOURS = 8
+
+
+# --------------------------------------------------------------------------- photon paths
+def drawn_photons(paths_list: list, n: int) -> list:
+    """``(batch, photon)`` pairs of the first ``n`` photons of the pass."""
+    out = []
+    for b, paths in enumerate(paths_list):
+        for p in range(len(paths)):
+            if len(out) >= n:
+                return out
+            out.append((b, p))
+    return out
+
+
+def paths_mesh(paths_list: list, scene, n: int):
+    """Clipped segments and in-box vertices of the first ``n`` photons.
+
+    Returns
+    -------
+    lines : pv.PolyData
+        One line cell per drawn segment, cell data ``event`` (the vertex it ends at, ``j``).
+    verts : pv.PolyData
+        Points: scattering vertices inside the box, point data ``event``; may be empty.
+    """
+    seg_pts, seg_ev, vtx, vtx_ev = [], [], [], []
+    lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
+    for b, p in drawn_photons(paths_list, n):
+        P = paths_list[b]
+        for j in range(1, P.depth + 1):
+            if not P.alive[p, j - 1]:
+                break
+            a, c = P.clip[p, j - 1]
+            x, w = P.x[p, j - 1], P.w[p, j - 1]
+            if c > a:
+                seg_pts.append((x + a * w, x + c * w))
+                seg_ev.append(j)
+            y = P.x[p, j]
+            if np.all(y >= lo) and np.all(y <= hi):
+                vtx.append(y)
+                vtx_ev.append(j)
+    if seg_pts:
+        pts = np.array(seg_pts).reshape(-1, 3)
+        m = len(seg_pts)
+        cells = np.column_stack([np.full(m, 2), 2 * np.arange(m), 2 * np.arange(m) + 1]).ravel()
+        lines = pv.PolyData(pts, lines=cells)
+        lines.cell_data["event"] = np.minimum(np.array(seg_ev), MAX_EVENT_COLOURS)
+    else:
+        lines = pv.PolyData()
+    verts = pv.PolyData(np.array(vtx).reshape(-1, 3))
+    if vtx:
+        verts.point_data["event"] = np.minimum(np.array(vtx_ev), MAX_EVENT_COLOURS)
+    return lines, verts
+
+
+def add_paths(plotter: pv.Plotter, paths_list: list, scene, n: int, *, opacity: float = 1.0,
+              line_width: float = LINE, scalar_bar: bool = True, name: str = "paths") -> int:
+    """Draw the first ``n`` photon subpaths; returns the number of segments drawn."""
+    lines, verts = paths_mesh(paths_list, scene, n)
+    if lines.n_cells == 0:
+        return 0
+    clim = [1, MAX_EVENT_COLOURS]
+    bar = dict(title="scatter event j", n_labels=MAX_EVENT_COLOURS, fmt="%.0f",
+               title_font_size=pt(FONT), label_font_size=pt(FONT_SMALL), color="black",
+               vertical=False, position_x=0.05, position_y=0.03, width=0.4, height=0.07)
+    plotter.add_mesh(lines, scalars="event", cmap=PATH_CMAP, clim=clim,
+                     n_colors=MAX_EVENT_COLOURS, line_width=px(line_width), opacity=opacity,
+                     render_lines_as_tubes=False, show_scalar_bar=scalar_bar,
+                     scalar_bar_args=bar, name=name)
+    if verts.n_points:
+        r = 0.55 * scale_of(scene)
+        glyphs = verts.glyph(geom=pv.Sphere(radius=r, theta_resolution=12, phi_resolution=12),
+                             scale=False, orient=False)
+        plotter.add_mesh(glyphs, scalars="event", cmap=PATH_CMAP, clim=clim,
+                         n_colors=MAX_EVENT_COLOURS, opacity=opacity, show_scalar_bar=False,
+                         name=f"{name}-vertices")
+    return lines.n_cells
+
+
+# --------------------------------------------------------------------------- surfaces
+def _frame(axis: np.ndarray):
+    """(M, 3) unit vectors ``e1, e2`` completing unit ``axis`` to an orthonormal frame."""
+    a = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+    helper = np.where(np.abs(a[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+    e1 = np.cross(a, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    return e1, np.cross(a, e1)
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Rodrigues: rotate (M, 3) ``v`` about unit (M, 3) ``axis`` by every angle of ``phi``.
+
+    Returns (M, len(phi), 3).
+    """
+    c, s = np.cos(phi)[None, :, None], np.sin(phi)[None, :, None]
+    v_, a = v[:, None, :], axis[:, None, :]
+    return (v_ * c + np.cross(a, v_) * s
+            + a * np.sum(a * v_, axis=-1, keepdims=True) * (1.0 - c))
+
+
+def grid_surface(P: np.ndarray) -> pv.PolyData:
+    """Quads of ``M`` parametric patches sampled on ``(M, na, nb, 3)`` grids."""
+    m, na, nb, _ = P.shape
+    if m == 0:
+        return pv.PolyData()
+    i, j = np.meshgrid(np.arange(na - 1), np.arange(nb - 1), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    base = (i * nb + j)[None, :] + (np.arange(m) * na * nb)[:, None]
+    q = np.stack([np.full_like(base, 4), base, base + nb, base + nb + 1, base + 1], axis=-1)
+    return pv.PolyData(P.reshape(-1, 3).astype(float), faces=q.ravel())
+
+
+def _lengths(T: np.ndarray | None, m: int, far: float) -> np.ndarray:
+    return np.full(m, far) if T is None else np.asarray(T, float)
+
+
+def _ruled(origin, dirs, length) -> np.ndarray:
+    """(M, 2, nb, 3) grid ``origin + t dirs`` for ``t`` in ``{0, length}`` (straight
+    generators along ``dirs`` (M, nb, 3))."""
+    o = origin[:, None, None, :]
+    t = np.stack([np.zeros_like(length), length], axis=1)[:, :, None, None]
+    return o + t * dirs[:, None, :, :]
+
+
+def _parallelograms(origin, u, v, tu, tv) -> np.ndarray:
+    a = np.array([0.0, 1.0])
+    return (origin[:, None, None, :] + (a[None, :, None, None] * tu[:, None, None, None])
+            * u[:, None, None, :] + (a[None, None, :, None] * tv[:, None, None, None])
+            * v[:, None, None, :])
+
+
+def _sphere_grid(centre, radius, axis=None, theta_max=None, nt=14, nph=28) -> np.ndarray:
+    m = centre.shape[0]
+    axis = np.tile([0.0, 0.0, 1.0], (m, 1)) if axis is None else axis
+    e1, e2 = _frame(axis)
+    tmax = np.full(m, np.pi) if theta_max is None else theta_max
+    th = np.linspace(0, 1, nt)[None, :] * tmax[:, None]  # (M, nt)
+    ph = np.linspace(0, 2 * np.pi, nph)
+    ring = (np.cos(ph)[None, None, :, None] * e1[:, None, None]
+            + np.sin(ph)[None, None, :, None] * e2[:, None, None])
+    dirs = (np.cos(th)[:, :, None, None] * axis[:, None, None, :]
+            + np.sin(th)[:, :, None, None] * ring)
+    return centre[:, None, None, :] + radius[:, None, None, None] * dirs
+
+
+def _cone_grid(apex, axis, c, length, nph=36) -> np.ndarray:
+    e1, e2 = _frame(axis)
+    s = np.sqrt(np.clip(1.0 - c * c, 0.0, None))
+    ph = np.linspace(0, 2 * np.pi, nph)
+    dirs = (c[:, None, None] * axis[:, None, :]
+            + s[:, None, None] * (np.cos(ph)[None, :, None] * e1[:, None]
+                                  + np.sin(ph)[None, :, None] * e2[:, None]))
+    return _ruled(apex, dirs, length)
+
+
+def _half_disk_grid(apex, axis, er, length, theta_max, nth=20) -> np.ndarray:
+    th = np.linspace(0, 1, nth)[None, :] * theta_max[:, None]
+    dirs = np.cos(th)[:, :, None] * axis[:, None, :] + np.sin(th)[:, :, None] * er[:, None, :]
+    return _ruled(apex, dirs, length)
+
+
+def _draw_family(tech, prims, idx: np.ndarray, scene, radius: float):
+    """Geometry of primitives ``idx`` of one technique (unclipped), or None if the family's
+    layout is unknown. Raises KeyError when an expected data field is missing."""
+    d = {k: v[idx] for k, v in prims.data.items()}
+    m = idx.size
+    far = 3.0 * scene.medium.diagonal
+    short = bool(getattr(tech, "short", False))
+    fam = tech.family
+    name = tech.name
+    if fam == "points":
+        r = radius if radius > 0 else scale_of(scene)
+        return pv.PolyData(d["xp"]).glyph(geom=pv.Sphere(radius=r, theta_resolution=14,
+                                                         phi_resolution=14),
+                                          scale=False, orient=False)
+    if fam == "beams":
+        o, w = d["o"], d["w"]
+        T = _lengths(d["T"] if short else None, m, far)
+        lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / w
+            t0, t1 = (lo - o) * inv, (hi - o) * inv
+        te = np.nanmax(np.minimum(t0, t1), axis=1).clip(0.0)
+        tx = np.minimum(np.nanmin(np.maximum(t0, t1), axis=1), T)
+        keep = tx > te
+        if not keep.any():
+            return pv.PolyData()
+        a, b = o + te[:, None] * w, o + tx[:, None] * w
+        pts = np.stack([a[keep], b[keep]], axis=1).reshape(-1, 3)
+        k = int(keep.sum())
+        cells = np.column_stack([np.full(k, 2), 2 * np.arange(k), 2 * np.arange(k) + 1])
+        r = radius if radius > 0 else 0.3 * scale_of(scene)
+        return pv.PolyData(pts, lines=cells.ravel()).tube(radius=r, n_sides=16)
+    if fam == "planes" and "x2" in d:
+        tu = _lengths(d["T2"] if short else None, m, far)
+        tv = _lengths(d["T1"] if short else None, m, far)
+        return grid_surface(_parallelograms(d["x2"], d["w2"], d["w1"], tu, tv))
+    if fam == "planes" and "origin" in d:
+        tu = _lengths(d["Tu"] if short else None, m, far)
+        tv = _lengths(d["Tv"] if short else None, m, far)
+        return grid_surface(_parallelograms(d["origin"], d["w3"], d["v"], tu, tv))
+    if fam == "spheres":
+        return grid_surface(_sphere_grid(d["x1"], d["T1"]))
+    if fam == "cones":
+        return grid_surface(_cone_grid(d["x1"], d["w2"], d["c1"],
+                                       _lengths(d["T1"] if short else None, m, far)))
+    if fam == "cylinders":
+        e1, e2 = _frame(d["w2"])
+        ph = np.linspace(0, 2 * np.pi, 36)
+        ring = (d["T1"] * d["s1"])[:, None, None] * (np.cos(ph)[None, :, None] * e1[:, None]
+                                                    + np.sin(ph)[None, :, None] * e2[:, None])
+        start = d["x2"] + (d["T1"] * d["c1"])[:, None] * d["w2"]
+        h = _lengths(d["T2"] if short else None, m, far)
+        t = np.stack([np.zeros(m), h], axis=1)
+        P = (start[:, None, None, :] + t[:, :, None, None] * d["w2"][:, None, None, :]
+             + ring[:, None, :, :])
+        return grid_surface(P)
+    if fam == "disks":
+        return grid_surface(_half_disk_grid(d["x1"], d["w2"], d["e_r"],
+                                            _lengths(d["T1"] if short else None, m, far),
+                                            np.full(m, np.pi)))
+    if fam == "revolutions":
+        ph = np.linspace(0, 2 * np.pi, 36)
+        A = d["A3"] / np.linalg.norm(d["A3"], axis=1, keepdims=True)
+        if name.startswith("hyperboloid"):
+            t1 = _lengths(d["T1"] if short else None, m, far)
+            v0 = d["T2"][:, None] * d["w2"]
+            v1 = v0 + t1[:, None] * d["w1"]
+            P = np.stack([_rotate(v0, A, ph), _rotate(v1, A, ph)], axis=1)
+        elif name.startswith("torus"):
+            th = np.linspace(0, np.pi, 16)
+            merid = (d["T2"][:, None, None] * d["w2"][:, None]
+                     + d["T1"][:, None, None] * (np.cos(th)[None, :, None] * d["w2"][:, None]
+                                                 + np.sin(th)[None, :, None] * d["e_r"][:, None]))
+            P = np.stack([_rotate(merid[:, i], A, ph) for i in range(th.size)], axis=1)
+        else:
+            return None
+        return grid_surface(d["x2"][:, None, None, :] + P)
+    if fam == "single":
+        one = d.get("one_sided", np.zeros(m, dtype=bool)).astype(bool)
+        if name == "ss-sphere":
+            return grid_surface(_sphere_grid(d["x"], d["T"], d["axis"],
+                                             np.where(one, 0.5 * np.pi, np.pi)))
+        if name.startswith("ss-cone"):
+            return grid_surface(_cone_grid(d["x"], d["axis"], d["c"],
+                                           _lengths(d["T"] if short else None, m, far)))
+        if name.startswith("ss-disk"):
+            return grid_surface(_half_disk_grid(d["x"], d["axis"], d["er"],
+                                                _lengths(d["T"] if short else None, m, far),
+                                                np.where(one, 0.5 * np.pi, np.pi)))
+        if name.startswith("ss-plane"):
+            tri = d["tri"].astype(bool)
+            if name == "ss-plane-uv":
+                a = np.linspace(0, 1, 2)
+                P = (d["org"][:, None, None, :] + a[None, :, None, None] * d["A"][:, None, None]
+                     + (a[None, None, :, None] * np.where(tri[:, None, None, None],
+                                                          1.0 - a[None, :, None, None], 1.0))
+                     * d["B"][:, None, None])
+                return grid_surface(P)
+            tb = _lengths(d["T"] if short else None, m, far)
+            return grid_surface(_parallelograms(d["org"], d["A"], d["B"], d["amax"], tb))
+        return None
+    return None
+
+
+def _bounds_boxes(prims, idx) -> pv.PolyData:
+    out = pv.PolyData()
+    for i in idx:
+        lo, hi = prims.lo[i], prims.hi[i]
+        if np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi >= lo):
+            out = out.merge(pv.Box(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])).outline())
+    return out
+
+
+def primitive_mesh(tech, prims, idx, scene, radius: float):
+    """Geometry of primitives ``idx`` of ``tech``, clipped to the medium box.
+
+    Returns
+    -------
+    mesh : pv.PolyData (possibly empty)
+    how : str
+        ``"surface"`` (drawn by family) or ``"bounds"`` (fallback: bounding boxes).
+    """
+    idx = np.asarray(idx, dtype=np.int64)
+    if idx.size == 0:
+        return pv.PolyData(), "surface"
+    try:
+        mesh = _draw_family(tech, prims, idx, scene, radius)
+    except (KeyError, IndexError, ValueError):
+        mesh = None
+    if mesh is None:
+        return _bounds_boxes(prims, idx), "bounds"
+    if mesh.n_points == 0:
+        return mesh, "surface"
+    clipped = mesh.clip_box(medium_bounds(scene), invert=False)
+    if not isinstance(clipped, pv.PolyData):
+        clipped = clipped.extract_surface()
+    return clipped, "surface"
+
+
+def create_selection(inspection, n_paths: int, max_prims: int = MAX_PRIMS) -> dict:
+    """``(technique, batch) -> primitive rows`` made from the first ``n_paths`` photons."""
+    drawn = {}
+    for b, p in drawn_photons(inspection.paths, n_paths):
+        drawn.setdefault(b, []).append(p)
+    sel = {}
+    for (name, b), prims in inspection.prims.items():
+        ph = np.asarray(drawn.get(b, []), dtype=np.int64)
+        rows = np.flatnonzero(np.isin(prims.photon, ph))
+        sel[(name, b)] = rows[:max_prims]
+    return sel
+
+
+def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity: float = 0.45,
+                   edges: bool = True, name: str = "prims", legend: bool = True,
+                   legend_loc: str = "lower right", width: float = 3.0,
+                   list_empty: bool = True) -> dict:
+    """Draw the selected primitives of every technique; returns ``technique -> status``.
+
+    ``status`` is ``"N drawn"``, ``"N bounds only"`` or ``"none"``; techniques with nothing
+    selected appear in the legend as "none here" when ``list_empty``.
+    """
+    status = {}
+    entries = []
+    for tname, tech in inspection.techniques.items():
+        meshes, how, count = [], "surface", 0
+        for (n2, b), rows in selection.items():
+            if n2 != tname or len(rows) == 0:
+                continue
+            mesh, how = primitive_mesh(tech, inspection.prims[(n2, b)], rows, inspection.scene,
+                                       inspection.radii.get(tname, 0.0))
+            count += len(rows)
+            if mesh.n_points:
+                meshes.append(mesh)
+        col = family_colour(tech.family)
+        if count == 0:
+            status[tname] = "none"
+            if list_empty:
+                entries.append([f"{tname}: none here", col])
+            continue
+        merged = meshes[0] if len(meshes) == 1 else (meshes[0].merge(meshes[1:])
+                                                     if meshes else pv.PolyData())
+        if merged.n_points:
+            if how == "bounds":
+                plotter.add_mesh(merged, color=col, line_width=px(width), name=f"{name}-{tname}")
+            else:
+                plotter.add_mesh(merged, color=col, opacity=opacity, show_edges=False,
+                                 smooth_shading=False, name=f"{name}-{tname}",
+                                 culling=False)
+                if edges:
+                    fe = merged.extract_feature_edges(boundary_edges=True, feature_edges=False,
+                                                      manifold_edges=False,
+                                                      non_manifold_edges=False)
+                    if fe.n_points:
+                        plotter.add_mesh(fe, color=col, line_width=px(width),
+                                         name=f"{name}-{tname}-edges")
+        tag = "bounds only (no drawer)" if how == "bounds" else "drawn"
+        status[tname] = f"{count} {tag}"
+        entries.append([f"{tech.family}: {tname} ({count}{', bounds' if how == 'bounds' else ''})",
+                         col])
+    if legend and entries:
+        add_legend(plotter, entries, loc=legend_loc)
+    return status
+
+
+def add_legend(plotter: pv.Plotter, entries: list, loc: str = "lower right") -> None:
+    """A legend of colour chips (label on its family colour), stacked in a corner.
+
+    ``entries`` is a list of ``[label, colour]``; ``loc`` is ``"lower right"`` (above the
+    stage hint) or ``"upper right"`` (below the caption).
+    """
+    lum = {}
+    for label, col in entries:
+        r, g, b = pv.Color(col).float_rgb
+        lum[label] = 0.2126 * r + 0.7152 * g + 0.0722 * b
+    step = 0.045
+    n = len(entries)
+    y0 = (0.10 + step * n) if loc == "lower right" else 0.80
+    for i, (label, col) in enumerate(entries):
+        add_text(plotter, f" {label} ", 0.985, y0 - i * step, FONT_SMALL, align="right",
+                 colour="black" if lum[label] > 0.45 else "white", background=col,
+                 name=f"legend-{i}")
