@@ -132,7 +132,8 @@ def build_parser() -> Parser:
         epilog=f"estimators (--estimator NAME):\n{estimators}",
     )
     top.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot}", parser_class=Parser)
+    sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot}",
+                             parser_class=Parser)
 
     r = sub.add_parser(
         "render",
