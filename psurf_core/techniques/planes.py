@@ -84,8 +84,8 @@ class PhotonPlane(Technique):
                 d.update(_plane_solver(d["x2"], d["w2"], d["w1"], rays.origin))
             m, sdet = d["m"][prim], d["sdet"][prim]
         else:
-            m, sdet = _plane_solver(d["x2"][prim], d["w2"][prim], d["w1"][prim], rays.o[ray])
-            m, sdet = m["m"], m["sdet"]
+            sol = _plane_solver(d["x2"][prim], d["w2"][prim], d["w1"][prim], rays.o[ray])
+            m, sdet = sol["m"], sol["sdet"]
         v = np.einsum("ijk,ik->ij", m, psi)  # (H, 3): det, t2 det, t1 det
         det = v[:, 0]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -113,13 +113,16 @@ class PhotonPlane(Technique):
         x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
         valid = in_medium(scene, x1) & segments_clear(ctx.blockers, (x2, x1), (x1, x0))
         rho0 = phase_value(-dot(w1, rays.d[hits.ray]), med.phase.g)
-        # beta_2 E(t2) ss [rho/p(w1) = 1] E(t1) ss rho0 E(s) / |n . psi|
-        scal = med.sigma_s**2 * rho0 * camera_transmittance(scene, rays, hits.ray, hits.s)
+        # beta_2 E(t2) ss [rho/p(w1) = 1] E(t1) ss rho0 E(s) / |n . psi|. The weight is read
+        # after x1 (beta leaving x1 = beta_2 ss/st / q_roulette(x1)): w1 was sampled only if
+        # the photon survived roulette at x1, so that survival must be divided out.
+        scal = med.sigma_t * med.sigma_s * rho0 * camera_transmittance(scene, rays, hits.ray,
+                                                                      hits.s)
         if not self.short:
             scal = scal * np.exp(-med.sigma_t * (t1 + t2))
         with np.errstate(divide="ignore"):
             scal = np.where(valid, scal / hits.data["n_dot_psi"], 0.0)
-        return paths.beta[photon, K - 2] * scal[:, None]
+        return paths.beta[photon, K - 1] * scal[:, None]
 
     # ------------------------------------------------------------------ Reconstruct
     def reconstruct(self, hits, prims, paths, rays, ctx):
