@@ -1,0 +1,284 @@
+"""Shared pieces of the multiple-scattering photon surfaces (spec 3.1 and 3.3).
+
+Every technique of the family follows the same recipe (see ``planes.py``): pick the photons
+and scatter counts ``K`` whose sampled prefix it keeps is valid, gather the last segments in
+the spec's notation ``x3 -> x2 -> x1 -> x0``, bound the swept surface, solve for the camera
+ray's roots, and evaluate ``f / (q |n . psi|)`` with the bounded-scene rules of spec section 4.
+
+Photon weights (tracer layout, ``trace.py``): ``paths.beta[p, K-2]`` is ``beta_2`` (leaving
+``x2`` along ``w2``) and ``paths.beta[p, K-1]`` is the weight leaving ``x1``; the tracer
+multiplies by the albedo when it scatters at ``x1`` (and divides by the roulette survival
+decided at ``x1``), so ``paths.beta[p, K-1] = beta_2 ss/st / q_rr(x1)``. That is exactly the
+spec's ``beta_1^-`` (weight arriving at and scattering at ``x1``) times the roulette factor
+that every technique of this family needs, because each of them uses at least one dimension
+sampled at ``x1`` and so only sees photons that survived roulette there. Every
+contribution is therefore written in terms of :func:`beta1`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..path_record import PathRecord, Pdfs
+from ..sampling import phase_value
+from .base import PassContext, Technique, camera_transmittance, dot
+
+#: ``|n . psi|`` at or below this is a measure-zero grazing hit: dropped, so that no division
+#: by zero (or an overflow to inf) can reach the image.
+NDP_MIN = 1e-150
+
+#: Photons whose ``sin th1`` is at or below this have no azimuth frame (``th1 = 0`` or ``pi``,
+#: probability zero); techniques that need ``e_r`` skip them.
+SIN_MIN = 1e-12
+
+
+# ------------------------------------------------------------------------- photons
+def select_photons(tech: Technique, paths, ctx: PassContext, back: int):
+    """Photons and scatter counts a technique makes primitives for.
+
+    A primitive for ``(p, K)`` needs segment ``K`` sampled (``alive[:, K-1]``: survived
+    roulette at ``x1``) and the photon's own prefix valid up to the deepest sampled vertex the
+    technique keeps, ``x_back`` = tracer vertex ``K - back`` (spec section 4).
+
+    Returns
+    -------
+    photon, K : (M,) int
+    """
+    scene = ctx.scene
+    lmask = tech.light_mask(paths, scene)
+    photon, kk = [], []
+    for k in tech.k_range(scene, paths.depth):
+        ok = lmask & paths.alive[:, k - 1] & paths.prefix_ok[:, k - back]
+        idx = np.flatnonzero(ok)
+        photon.append(idx)
+        kk.append(np.full(idx.size, k))
+    photon = np.concatenate(photon) if photon else np.zeros(0, np.int64)
+    K = np.concatenate(kk) if kk else np.zeros(0, np.int64)
+    return photon, K
+
+
+def gather(paths, photon: np.ndarray, K: np.ndarray) -> dict:
+    """The photon's last three segments in spec notation (tracer vertex ``j`` = ``x_{K-j}``).
+
+    Returns
+    -------
+    dict with ``x3, x2, x1 : (M, 3)``, ``w3, w2, w1 : (M, 3)``, ``T3, T2, T1 : (M,)`` and
+    ``A3 : (M, 3)`` (``w3``, or the light axis / normal when ``x2`` is the light). Entries
+    beyond the light (``K < 3`` for the ``3`` ones) hold arbitrary finite values.
+    """
+    j3 = np.maximum(K - 3, 0)
+    first = (K == 2)[:, None]
+    w3 = paths.w[photon, j3]
+    return dict(
+        x3=paths.x[photon, j3], x2=paths.x[photon, K - 2], x1=paths.x[photon, K - 1],
+        w3=w3, w2=paths.w[photon, K - 2], w1=paths.w[photon, K - 1],
+        T3=paths.t[photon, j3], T2=paths.t[photon, K - 2], T1=paths.t[photon, K - 1],
+        A3=np.where(first, paths.light_normal[photon], w3),
+    )
+
+
+def beta1(paths, photon: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """(H, 3) ``beta_1^-`` (with the roulette factor at ``x1``): see the module docstring."""
+    return paths.beta[photon, K - 1]
+
+
+def radial(w1: np.ndarray, w2: np.ndarray):
+    """``c1 = w1 . w2``, ``s1 = sin th1`` and the unit radial ``e_r = (w1 - c1 w2) / s1``.
+
+    Returns
+    -------
+    c1, s1 : (M,) float
+    e_r : (M, 3) float
+        Finite everywhere; meaningless where ``s1 <= SIN_MIN`` (callers skip those).
+    """
+    c1 = np.clip(dot(w1, w2), -1.0, 1.0)
+    e = w1 - c1[:, None] * w2
+    s1 = np.linalg.norm(e, axis=1)
+    e_r = e / np.where(s1 > SIN_MIN, s1, 1.0)[:, None]
+    return c1, s1, e_r
+
+
+def unit(v: np.ndarray):
+    """``(v / |v|, |v|)`` for (H, 3) ``v``; rows of zero length stay zero."""
+    n = np.linalg.norm(v, axis=1)
+    return v / np.where(n > 0.0, n, 1.0)[:, None], n
+
+
+# ------------------------------------------------------------------------- bounds
+def circle_extent(axis: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(M, 3) per-coordinate half-extent of circles of radius ``r`` about unit ``axis``."""
+    return r[:, None] * np.sqrt(np.clip(1.0 - axis**2, 0.0, None))
+
+
+def cone_bounds(apex, axis, c, s, length):
+    """Bounds of ``apex + t (c axis + s e(ph))`` over every azimuth and ``0 <= t <= length``
+    (``length`` None: to infinity)."""
+    ext = circle_extent(axis, s)
+    dmin, dmax = c[:, None] * axis - ext, c[:, None] * axis + ext
+    if length is None:
+        return (np.where(dmin < 0.0, -np.inf, apex), np.where(dmax > 0.0, np.inf, apex))
+    return (apex + length[:, None] * np.minimum(dmin, 0.0),
+            apex + length[:, None] * np.maximum(dmax, 0.0))
+
+
+def sweep_bounds(lo, hi, d, length):
+    """Boxes ``[lo, hi]`` swept along ``d`` for ``0..length`` (None: to infinity)."""
+    if length is None:
+        return np.where(d < 0.0, -np.inf, lo), np.where(d > 0.0, np.inf, hi)
+    step = length[:, None] * d
+    return np.minimum(lo, lo + step), np.maximum(hi, hi + step)
+
+
+def half_disk_bounds(apex, a, b, length):
+    """Bounds of ``apex + t (cos u a + sin u b)``, ``u`` in [0, pi], ``0 <= t <= length``
+    (``a, b`` orthonormal; ``length`` None: to infinity)."""
+    rad = np.sqrt(a**2 + b**2)
+    dmax = np.where(b >= 0.0, rad, np.abs(a))
+    dmin = np.where(b <= 0.0, -rad, -np.abs(a))
+    if length is None:
+        return (np.where(dmin < 0.0, -np.inf, apex), np.where(dmax > 0.0, np.inf, apex))
+    return (apex + length[:, None] * np.minimum(dmin, 0.0),
+            apex + length[:, None] * np.maximum(dmax, 0.0))
+
+
+# ------------------------------------------------------------------------- roots
+def quadratic_roots(a, h, c):
+    """Both real roots of ``a x^2 + 2 h x + c = 0`` (numerically stable form).
+
+    A vanishing ``a`` leaves the linear root in the second slot; missing roots are NaN.
+
+    Returns
+    -------
+    (2, N) float
+    """
+    with np.errstate(all="ignore"):
+        disc = h * h - a * c
+        q = -(h + np.copysign(np.sqrt(np.maximum(disc, 0.0)), h))
+        r = np.stack([q / a, c / q])
+    return np.where((disc >= 0.0) & np.isfinite(r), r, np.nan)
+
+
+def closest_shift(o: np.ndarray, d: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """(H,) ``s`` of the point of ray ``o + s d`` closest to ``centre``; solving for
+    ``s - shift`` instead of ``s`` keeps the quadratics' coefficients well conditioned."""
+    return dot(centre - o, d)
+
+
+def expand(ray: np.ndarray, prim: np.ndarray, roots: np.ndarray):
+    """Flatten (R, N) per-pair roots into parallel ``(ray, prim, root, slot)`` arrays."""
+    n_r = roots.shape[0]
+    return (np.tile(ray, n_r), np.tile(prim, n_r), roots.reshape(-1),
+            np.repeat(np.arange(n_r), ray.shape[0]))
+
+
+# ------------------------------------------------------------------------- evaluate
+def camera_vertex(scene, rays, hits, w1: np.ndarray) -> np.ndarray:
+    """(H,) ``ss rho(-w1 . psi) E(s)``: the scattering at ``x0 = y(s)`` towards the camera."""
+    med = scene.medium
+    rho0 = phase_value(-dot(w1, rays.d[hits.ray]), med.phase.g)
+    return med.sigma_s * rho0 * camera_transmittance(scene, rays, hits.ray, hits.s)
+
+
+def finish(beta: np.ndarray, scal: np.ndarray, valid: np.ndarray, ndp: np.ndarray):
+    """(H, 3) ``beta * scal / ndp`` where ``valid``, else 0 (``ndp > NDP_MIN`` on hits)."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        v = np.where(valid & (ndp > NDP_MIN), scal / ndp, 0.0)
+    return beta * v[:, None]
+
+
+# ------------------------------------------------------------------------- densities
+def q_to_w2(rec: PathRecord, pdf: Pdfs) -> np.ndarray:
+    """(H,) relative ``q_{<= w2}``: ``p(t3) p(w2)`` (``K >= 3``) or the emission pdf ``p(w2)``
+    (``K = 2``; the light-position pdf is shared and dropped, ``path_record``)."""
+    return np.where(rec.K >= 3, pdf.t3, 1.0) * pdf.w2
+
+
+def transmittance(ctx: PassContext, *ts) -> np.ndarray:
+    """``exp(-st sum(ts))``: the short variants' extra density factor."""
+    return np.exp(-ctx.scene.medium.sigma_t * sum(ts))
+
+
+def plane_solve(o, u, v, c, psi):
+    """Solve ``o + a u + b v = c + s psi`` by Cramer's rule (the planes' 3x3 system).
+
+    Returns
+    -------
+    a, b, s : (H,) float
+        NaN/inf where the system is singular (callers test ``ndp``).
+    ndp : (H,) float
+        ``|(v x u) . psi|``, the Jacobian ``|det[u, v, -psi]|`` (scaled normal ``v x u``).
+    """
+    r = c - o
+    det = dot(np.cross(v, u), psi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        a = dot(r, np.cross(v, -psi)) * inv
+        b = dot(u, np.cross(r, -psi)) * inv
+        s = dot(u, np.cross(v, r)) * inv
+    return a, b, s, np.abs(det)
+
+
+def quartic_real_roots(coef: np.ndarray, newton: int = 4) -> np.ndarray:
+    """Real roots in ``[-1, 1]`` of quartics ``c4 u^4 + ... + c0`` (the torus, spec 3.3).
+
+    Companion-matrix eigenvalues (batched ``numpy.linalg.eigvals``), then Newton polishing on
+    the original polynomial. A vanishing ``c4`` is replaced by a tiny one: that only adds a
+    root far outside ``[-1, 1]`` and Newton removes its effect on the others.
+
+    Parameters
+    ----------
+    coef : (5, N) float
+        Coefficients, highest degree first.
+
+    Returns
+    -------
+    (4, N) float
+        NaN where a slot holds no real root in the interval.
+    """
+    n = coef.shape[1]
+    out = np.full((4, n), np.nan)
+    scale = np.max(np.abs(coef), axis=0)
+    ok = np.isfinite(scale) & (scale > 0)
+    c = coef[:, ok] / scale[ok]
+    c4 = np.where(np.abs(c[0]) < 1e-13, np.where(c[0] < 0, -1e-13, 1e-13), c[0])
+    comp = np.zeros((c.shape[1], 4, 4))
+    comp[:, 0, :] = -(c[1:] / c4).T
+    comp[:, 1, 0] = comp[:, 2, 1] = comp[:, 3, 2] = 1.0
+    ev = np.linalg.eigvals(comp).T if c.shape[1] else np.zeros((4, 0), complex)
+    u = np.where((np.abs(ev.imag) < 1e-4) & (np.abs(ev.real) < 1.01), ev.real, np.nan)
+    d = c[:4] * np.array([4.0, 3.0, 2.0, 1.0])[:, None]
+    with np.errstate(all="ignore"):
+        for _ in range(newton):
+            p = (((c[0] * u + c[1]) * u + c[2]) * u + c[3]) * u + c[4]
+            dp = ((d[0] * u + d[1]) * u + d[2]) * u + d[3]
+            u = np.where(dp != 0, u - p / dp, u)
+        p = (((c[0] * u + c[1]) * u + c[2]) * u + c[3]) * u + c[4]
+        # Newton may have wandered off a complex pair: keep only true roots in [-1, 1].
+        good = (np.abs(p) < 1e-9) & (np.abs(u) <= 1.0)
+    out[:, ok] = np.where(good, u, np.nan)
+    return out
+
+
+def square_quadratic(c):
+    """(5, N) coefficients (highest first) of the square of (3, N) quadratics."""
+    a, b, e = c
+    return np.stack([a * a, 2 * a * b, b * b + 2 * a * e, 2 * b * e, e * e])
+
+
+def revolve(A, src, dst):
+    """The rotation about unit ``A`` taking the radial part of ``src`` onto that of ``dst``.
+
+    Returns
+    -------
+    rotate : callable (H, 3) -> (H, 3)
+    ok : (H,) bool
+        Both radial parts are non-zero (otherwise the rotation is undefined).
+    """
+    e1, ne = unit(src - dot(src, A)[:, None] * A)
+    f1, nf = unit(dst - dot(dst, A)[:, None] * A)
+    e2, f2 = np.cross(A, e1), np.cross(A, f1)
+
+    def rotate(v):
+        return (dot(v, A)[:, None] * A + dot(v, e1)[:, None] * f1 + dot(v, e2)[:, None] * f2)
+
+    return rotate, (ne > 0) & (nf > 0)
