@@ -189,47 +189,55 @@ def trace(
     e = emit(scene, rng, n_photons)
     n = n_photons
 
+    # Work only on the active photons (compacted index list `act`); per-depth results are
+    # scattered into full-size slices so the record keeps one row per emitted photon.
     xs = [e["x0"]]
     ws, ts, betas, alives, clips = [], [], [], [], []
-    ok = np.ones(n, dtype=bool)  # prefix_ok at the current vertex
-    oks_hist = [ok.copy()]
-    alive = np.ones(n, dtype=bool)
-    w = e["w1"]
+    oks_hist = [np.ones(n, dtype=bool)]  # prefix_ok per vertex
+    act = np.arange(n)
+    w = e["w1"].copy()
     beta = e["beta"].copy()
     x = e["x0"]
     for j in range(1, depth + 1):
         # Segment j leaves vertex j-1. Roulette decides before sampling it (depth only).
         if j > 1:
             q = roulette_survival(scene, j - 1)
+            keep = oks_hist[max(j - LOOKBACK, 0)][act]  # can a technique still use it?
             if q < 1.0:
-                alive &= rng.random(n) < q
-                beta = beta / q
-            # Only extend photons some technique can still use (see the module docstring).
-            alive &= oks_hist[max(j - LOOKBACK, 0)]
-            w = np.where(alive[:, None], sampling.sample_phase(w, g, rng), 0.0)
-            beta = beta * med.albedo
-        tj = sampling.sample_free_flight(st, rng, n)
-        tj = np.where(alive, tj, 0.0)
-        xn = x + tj[:, None] * w
+                keep &= rng.random(act.size) < q
+                beta[act] /= q
+            act = act[keep]
+            w[act] = sampling.sample_phase(w[act], g, rng)
+            beta[act] *= med.albedo
+        alive = np.zeros(n, dtype=bool)
+        alive[act] = True
+        tj = np.zeros(n)
+        tj[act] = sampling.sample_free_flight(st, rng, act.size)
+        xa, wa = x[act], w[act]
+        xn = x.copy()
+        xn[act] = xa + tj[act, None] * wa
         # Validity of the sampled prefix: in box and unoccluded.
-        check = alive & ok
-        seg_ok = np.zeros(n, dtype=bool)
-        idx = np.flatnonzero(check)
-        if idx.size:
-            inb = inside_box(xn[idx], med.bounds_min, med.bounds_max)
-            occ = blockers.occluded(x[idx], xn[idx])
-            seg_ok[idx] = inb & ~occ
-        ok = ok & seg_ok
-        te, tx = ray_box(x, w, med.bounds_min, med.bounds_max)
-        clips.append(np.stack([np.clip(te, 0.0, tj), np.clip(tx, 0.0, tj)], axis=-1))
-        ws.append(np.where(alive[:, None], w, 0.0))
+        ok = np.zeros(n, dtype=bool)
+        chk = act[oks_hist[-1][act]]
+        if chk.size:
+            inb = inside_box(xn[chk], med.bounds_min, med.bounds_max)
+            ok[chk] = inb & ~blockers.occluded(x[chk], xn[chk])
+        clip = np.zeros((n, 2))
+        te, tx = ray_box(xa, wa, med.bounds_min, med.bounds_max)
+        clip[act] = np.stack([np.clip(te, 0.0, tj[act]), np.clip(tx, 0.0, tj[act])], axis=-1)
+        wj = np.zeros((n, 3))
+        wj[act] = wa
+        bj = np.zeros((n, 3))
+        bj[act] = beta[act]
+        clips.append(clip)
+        ws.append(wj)
         ts.append(tj)
-        betas.append(np.where(alive[:, None], beta, 0.0))
-        alives.append(alive.copy())
+        betas.append(bj)
+        alives.append(alive)
         xs.append(xn)
-        oks_hist.append(ok.copy())
+        oks_hist.append(ok)
         x = xn
-        if not alive.any():
+        if act.size == 0:
             break
 
     return PhotonPaths(
