@@ -10,7 +10,7 @@ Grammar (the CLI contract):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from .scene import Scene, SceneError
 from .techniques import REGISTRY, Technique, UnknownTechnique, get_technique
@@ -77,6 +77,33 @@ def parse_estimator(spec: str, scene: Scene | None = None) -> Estimator:
     spec = spec.strip()
     if spec == "reference":
         return Estimator(spec, reference=True)
+    est = _parse(spec, scene)
+    if scene is not None:
+        est = replace(est, notes=est.notes + coverage_notes(est, scene))
+    return est
+
+
+def coverage_notes(est: Estimator, scene: Scene) -> tuple[str, ...]:
+    """What part of ``scene``'s image ``est`` does not estimate (lights, scatter counts)."""
+    notes = []
+    techs = est.techniques
+    for i, lt in enumerate(scene.lights):
+        if not any(t.applies_to(lt) for t in techs):
+            notes.append(f"light {i} ({lt.kind}) is not estimated by '{est.spec}'")
+    lo, hi = scene.min_scatter, scene.max_scatter
+    k_min = min(t.min_k for t in techs)
+    caps = [t.max_k for t in techs]
+    k_max = None if any(c is None for c in caps) else max(caps)
+    if k_min > lo:
+        missing = f"count {lo} is" if lo == k_min - 1 else f"counts {lo}..{k_min - 1} are"
+        notes.append(f"scatter {missing} not estimated by '{est.spec}' "
+                     f"(it produces K >= {k_min}); the image holds K >= {k_min} only")
+    if k_max is not None and (hi < 0 or hi > k_max):
+        notes.append(f"scatter counts above {k_max} are not estimated by '{est.spec}'")
+    return tuple(notes)
+
+
+def _parse(spec: str, scene: Scene | None) -> Estimator:
     if spec in PRESETS:
         return PRESETS[spec](spec, scene)
     if spec.endswith("-short") and spec[: -len("-short")] in PRESETS:
