@@ -127,6 +127,51 @@ def ray_triangles_first(o, d, tris, t_min, t_max):
     return best
 
 
+class _EmbreeTriangles:
+    """Embree (``embreex`` through trimesh) first-hit queries on a triangle soup.
+
+    Embree works in float32; hits closer than ``_RECHECK`` are re-tested exactly in float64
+    so that a segment leaving an emitter's surface is never blocked by float32 rounding.
+    """
+
+    _RECHECK = 1e-4
+
+    def __init__(self, tris: np.ndarray):
+        import trimesh
+        from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+        mesh = trimesh.Trimesh(vertices=tris.reshape(-1, 3),
+                               faces=np.arange(tris.shape[0] * 3).reshape(-1, 3), process=False)
+        self.tris = tris
+        self.rmi = RayMeshIntersector(mesh)
+
+    def first(self, o, d, t_min, t_max):
+        best = np.full(o.shape[0], np.inf)
+        live = np.flatnonzero(t_max > t_min)
+        if live.size == 0:
+            return best
+        start = o[live] + t_min[live, None] * d[live]
+        loc, ir, _ = self.rmi.intersects_location(start, d[live], multiple_hits=False)
+        if ir.size:
+            t = t_min[live[ir]] + np.einsum("ij,ij->i", loc - start[ir], d[live[ir]])
+            best[live[ir]] = t
+        near = np.flatnonzero(best < t_min + self._RECHECK)
+        if near.size:
+            best[near] = ray_triangles_first(o[near], d[near], self.tris, t_min[near],
+                                             t_max[near])
+        return np.where(best < t_max, best, np.inf)
+
+
+def _triangle_engine(tris: np.ndarray):
+    """Embree when ``embreex`` is importable and the mesh is not tiny, else ``None``."""
+    if tris.shape[0] < 8:
+        return None
+    try:
+        return _EmbreeTriangles(tris)
+    except ImportError:  # embreex missing on this platform: the numpy test is exact too
+        return None
+
+
 @dataclass(frozen=True)
 class Blockers:
     """Everything opaque in a scene: sphere/box/mesh occluders and area/mesh emitters.
@@ -140,6 +185,7 @@ class Blockers:
     box_max: np.ndarray  # (B, 3)
     quads: tuple  # of (corner, edge_u, edge_v)
     triangles: np.ndarray  # (F, 3, 3), all mesh occluders and mesh lights
+    engine: object = None  # _EmbreeTriangles over `triangles`, when available
 
     @property
     def empty(self) -> bool:
@@ -183,7 +229,11 @@ class Blockers:
         for corner, eu, ev in self.quads:
             keep(ray_parallelogram(o, d, corner, eu, ev))
         if self.triangles.shape[0]:
-            keep(ray_triangles_first(o, d, self.triangles, t_min, np.minimum(t_max, best)))
+            t_hi = np.minimum(t_max, best)
+            if self.engine is not None:
+                keep(self.engine.first(o, d, t_min, t_hi))
+            else:
+                keep(ray_triangles_first(o, d, self.triangles, t_min, t_hi))
         return best
 
     def occluded(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -226,5 +276,6 @@ def blockers_of(scene: Scene) -> Blockers:
         box_min=np.array(bmin, dtype=float).reshape(-1, 3),
         box_max=np.array(bmax, dtype=float).reshape(-1, 3),
         quads=tuple(quads),
-        triangles=np.concatenate(tris, axis=0) if tris else np.zeros((0, 3, 3)),
+        triangles=(tri := np.concatenate(tris, axis=0) if tris else np.zeros((0, 3, 3))),
+        engine=_triangle_engine(tri),
     )
