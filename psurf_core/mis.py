@@ -26,7 +26,9 @@ def member_densities(rec: PathRecord, group, ctx) -> np.ndarray:
     out = np.zeros((len(group), len(rec)))
     for j, m in enumerate(group):
         ok = m.can_produce(rec.K, rec.kind)
-        if ok.any():
+        if ok.all():  # the common case: no copy of the record
+            out[j] = np.nan_to_num(np.abs(m.density(rec, ctx)), nan=0.0, posinf=0.0)
+        elif ok.any():
             q = m.density(rec.select(ok), ctx)
             out[j, ok] = np.nan_to_num(np.abs(q), nan=0.0, posinf=0.0)
     return out
