@@ -215,61 +215,38 @@ def write_png(path: str, rgb8: np.ndarray, *, atomic: bool = True) -> None:
             os.remove(target)
 
 
-def _exr_bytes(img: np.ndarray) -> bytes:
-    import warnings
-
-    import imageio.v3 as iio
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        data = iio.imwrite("<bytes>", np.ascontiguousarray(img, dtype=np.float32),
-                           extension=".exr")
-    if not (isinstance(data, bytes) and data[:4] == b"\x76\x2f\x31\x01"):
-        raise OSError("imageio produced no OpenEXR data")
-    return data
-
-
 def can_write_exr() -> tuple[bool, str]:
-    """Whether imageio can encode a float RGB image as OpenEXR here.
+    """Whether OpenEXR output is available (the ``openexr`` package).
 
     Returns
     -------
     ok : bool
     reason : str
         Empty when ``ok``; otherwise why not (for an error message).
-
-    Notes
-    -----
-    imageio writes EXR only through its FreeImage plugin (which needs the FreeImage library)
-    or other optional backends; the check encodes a 2x2 image in memory.
     """
     try:
-        _exr_bytes(np.zeros((2, 2, 3), dtype=np.float32))
-    except Exception as e:  # any backend failure means "cannot"
-        msg = " ".join(str(e).split()) or type(e).__name__
-        return False, f"imageio cannot write OpenEXR here ({msg}); install the FreeImage " \
-                      f"library for imageio (imageio_download_bin freeimage) or drop --exr"
+        import OpenEXR  # noqa: F401
+    except ImportError as e:
+        return False, f"OpenEXR output needs the 'openexr' package ({e}); install it or drop --exr"
     return True, ""
 
 
 def write_exr(path: str, img: np.ndarray) -> None:
-    """Write a linear float RGB image as OpenEXR (float32), atomically.
+    """Write a linear float RGB image as OpenEXR (float32, ZIP), atomically.
 
     Parameters
     ----------
     path : str
     img : (H, W, 3) array_like
-
-    Raises
-    ------
-    OSError
-        When imageio cannot encode EXR (check :func:`can_write_exr` first).
+        Row 0 is the top of the image.
     """
-    data = _exr_bytes(img)
+    import OpenEXR
+
     target = _atomic_target(path)
     try:
-        with open(target, "wb") as f:
-            f.write(data)
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        rgb = np.ascontiguousarray(img, dtype=np.float32)
+        OpenEXR.File(header, {"RGB": rgb}).write(target)
         os.replace(target, path)
     finally:
         if os.path.exists(target):
