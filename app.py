@@ -1,27 +1,42 @@
 """psurf command line: ``render`` a scene to .npz/.png/.exr, or run the ``demo``.
 
 A thin layer over :mod:`psurf_core` (argument parsing, progress, writing files); the core never
-imports it. Every bad input ends with one line ``psurf: error: <what>`` on stderr and exit
-code 2, before anything is written.
+imports it. The ``render`` command lives in :mod:`ui.render_cli` (with the flag types and
+output helpers shared here) and ``screenshot`` in :mod:`ui.cli`. Every bad input ends with one
+line ``psurf: error: <what>`` on stderr and exit code 2, before anything is written.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import textwrap
 
-import numpy as np
+from ui.render_cli import (  # noqa: F401 - DEFAULT_* and CliError are part of app's interface
+    DEFAULT_PASSES,
+    DEFAULT_PHOTONS,
+    DEFAULT_SEED,
+    DEFAULT_SPP,
+    CliError,
+    Parser,
+    add_render_parser,
+    cmd_render,
+)
+from ui.render_cli import initial_radius as _initial_radius
+from ui.render_cli import load_scene as _load_scene
+from ui.render_cli import nonneg_int as _nonneg_int
+from ui.render_cli import note as _note
+from ui.render_cli import npz_payload as _npz_payload
+from ui.render_cli import npz_writer as _npz_writer
+from ui.render_cli import plural as _plural
+from ui.render_cli import png_writer as _png_writer
+from ui.render_cli import positive_float as _positive_float
+from ui.render_cli import positive_int as _positive_int
+from ui.render_cli import progress as _progress
+from ui.render_cli import write_all as _write_all
 
 PROG = "psurf"
-
-#: Defaults of ``render`` (a 64x48 scene shows a recognisable image in a few seconds).
-DEFAULT_PHOTONS = 4000
-DEFAULT_SPP = 1
-DEFAULT_PASSES = 8
-DEFAULT_SEED = 0
 
 #: Defaults of ``demo``.
 DEMO_SCENE = os.path.join("scenes", "area.toml")
@@ -30,70 +45,6 @@ DEMO_SECONDS = 10.0
 DEMO_ESTIMATORS = ("planes", "reference")
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
-
-
-class CliError(Exception):
-    """A bad command line or input: printed as one ``psurf: error:`` line, exit code 2."""
-
-
-class Parser(argparse.ArgumentParser):
-    """``ArgumentParser`` whose errors are :class:`CliError` (one line, exit 2, no usage)."""
-
-    def error(self, message: str):  # noqa: D102 - argparse hook
-        raise CliError(message)
-
-
-# --------------------------------------------------------------------------- flag types
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer > 0, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"must be an integer > 0, got {text!r}")
-    return v
-
-
-def _nonneg_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
-    return v
-
-
-def _scatter_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1 or -1, got {text!r}") from None
-    if v < 1 and v != -1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1 or -1, got {text!r}")
-    return v
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return v
-
-
-def _shrink(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}") from None
-    if not 0.0 < v <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}")
-    return v
 
 
 # --------------------------------------------------------------------------- parser
@@ -135,58 +86,7 @@ def build_parser() -> Parser:
     sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot}",
                              parser_class=Parser)
 
-    r = sub.add_parser(
-        "render",
-        allow_abbrev=False,
-        help="render a scene progressively to .npz (and .png/.exr)",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        description=textwrap.dedent(f"""\
-            Render SCENE.toml with one estimator in whole passes and write OUT.npz with
-            mean, var (per-pixel sample variance of one pass's estimate across passes; zeros
-            after one pass), passes, photons_per_pass, spp, seconds, estimator, seed, radius
-            and provenance (version, argv).
-
-            Defaults: --photons {DEFAULT_PHOTONS} --spp {DEFAULT_SPP} --passes {DEFAULT_PASSES} \
---seed {DEFAULT_SEED}
-            (a 64x48 scene shows a recognisable image in a few seconds).
-            Files are written only when the render succeeded (temporary name, then rename).
-            --png: the exposure maps the 99.5th percentile of the pixel luminance to white,
-            brighter pixels clip, then the sRGB transfer function (8 bit)."""),
-        epilog=f"estimators:\n{estimators}",
-    )
-    r.add_argument("scene", metavar="SCENE.toml", help="scene file (see SCENES.md)")
-    r.add_argument("--estimator", required=True, metavar="NAME",
-                   help="estimator name (list below)")
-    r.add_argument("--photons", type=_positive_int, default=DEFAULT_PHOTONS, metavar="N",
-                   help=f"photons per pass (default {DEFAULT_PHOTONS}; the reference ignores it)")
-    r.add_argument("--spp", type=_positive_int, default=DEFAULT_SPP, metavar="K",
-                   help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
-    budget = r.add_mutually_exclusive_group()
-    budget.add_argument("--passes", type=_positive_int, default=None, metavar="P",
-                        help=f"number of passes (default {DEFAULT_PASSES})")
-    budget.add_argument("--time", type=_positive_float, default=None, metavar="SECONDS",
-                        help="run whole passes until SECONDS are spent (the pass in flight "
-                             "finishes; at least one pass)")
-    r.add_argument("--seed", type=_nonneg_int, default=DEFAULT_SEED, metavar="S",
-                   help=f"random seed (default {DEFAULT_SEED}); same seed, same image")
-    r.add_argument("--min-scatter", type=_scatter_int, default=None, metavar="A",
-                   help="override the scene's [render] min_scatter (>= 1)")
-    r.add_argument("--max-scatter", type=_scatter_int, default=None, metavar="B",
-                   help="override the scene's [render] max_scatter (>= A, or -1: unlimited)")
-    r.add_argument("--radius", type=_positive_float, default=None, metavar="R",
-                   help="initial kernel radius in scene units (kernel estimators; default: "
-                        "each technique's fraction of the medium box diagonal)")
-    r.add_argument("--radius-shrink", type=_shrink, default=1.0, metavar="ALPHA",
-                   help="progressive radius reduction alpha in (0, 1] (default 1: fixed)")
-    r.add_argument("--memory-budget", type=_positive_int, default=None, metavar="MIB",
-                   help="memory bound of the chunked ray x primitive work in MiB "
-                        "(default: psurf_core.constants.DEFAULT_MEMORY_BUDGET_MIB)")
-    r.add_argument("--out", required=True, metavar="OUT.npz", help="output .npz")
-    r.add_argument("--png", default=None, metavar="OUT.png", help="also write a tone-mapped PNG")
-    r.add_argument("--exr", default=None, metavar="OUT.exr",
-                   help="also write the linear mean as OpenEXR (needs imageio EXR support; "
-                        "checked before rendering)")
-    r.set_defaults(func=cmd_render)
+    add_render_parser(sub, estimators)
 
     d = sub.add_parser(
         "demo",
@@ -218,231 +118,6 @@ def build_parser() -> Parser:
 
     add_screenshot_parser(sub)
     return top
-
-
-# --------------------------------------------------------------------------- shared helpers
-
-
-def _check_output(flag: str, path: str) -> None:
-    """The directory of ``path`` must exist, and ``path`` must not be a directory."""
-    if not path:
-        raise CliError(f"{flag}: empty path")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise CliError(f"{flag} {path}: output directory does not exist: "
-                       f"{os.path.dirname(path) or '.'}")
-    if os.path.isdir(path):
-        raise CliError(f"{flag} {path}: is a directory")
-    if not os.access(folder, os.W_OK):
-        raise CliError(f"{flag} {path}: output directory is not writable")
-
-
-def _load_scene(path: str):
-    from psurf_core import load_scene
-
-    return load_scene(path)  # SceneError propagates (one line, names file and key)
-
-
-def _estimator(spec: str, scene):
-    """Parse ``--estimator`` (unknown names and inapplicable techniques become CliError)."""
-    from psurf_core import SceneError, parse_estimator
-    from psurf_core.techniques import UnknownTechnique
-
-    try:
-        return parse_estimator(spec, scene)
-    except SceneError:
-        raise
-    except UnknownTechnique as e:
-        raise CliError(f"--estimator: {e} (see 'python app.py --help')") from None
-    except ModuleNotFoundError as e:
-        raise CliError(f"--estimator {spec!r}: not available in this build ({e})") from None
-    except ValueError as e:  # e.g. a malformed mis: spec
-        raise CliError(f"--estimator {spec!r}: {e}") from None
-
-
-def _progress(desc: str, passes: int | None, seconds: float | None):
-    """``(on_pass, close)`` showing a tqdm bar on stderr when it is a terminal."""
-    if not sys.stderr.isatty():
-        return None, lambda: None
-    from tqdm import tqdm
-
-    if passes is not None:
-        bar = tqdm(total=passes, desc=desc, unit="pass", file=sys.stderr, leave=False)
-
-        def on_pass(i, acc, elapsed):
-            bar.update(1)
-
-    else:
-        bar = tqdm(total=seconds, desc=desc, file=sys.stderr, leave=False,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s{postfix}")
-
-        def on_pass(i, acc, elapsed):
-            bar.n = min(elapsed, seconds)
-            bar.set_postfix_str(_plural(acc.n, "pass"), refresh=False)
-            bar.refresh()
-
-    return on_pass, bar.close
-
-
-def _initial_radius(estimator, scene, settings) -> float:
-    from psurf_core.render import kernel_radius
-
-    radii = [kernel_radius(t, scene, settings, 0) for t in estimator.techniques
-             if t.kernel_dim > 0]
-    return float(max(radii)) if radii else 0.0
-
-
-def _npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict:
-    from psurf_core import __version__
-
-    data = {
-        "mean": result.mean.astype(np.float32),
-        "var": result.var.astype(np.float32),
-        "passes": np.int64(result.passes),
-        "photons_per_pass": np.int64(result.photons_per_pass),
-        "spp": np.int64(result.spp),
-        "seconds": np.float64(result.seconds),
-        "estimator": np.str_(result.estimator),
-        "seed": np.int64(result.seed),
-        "radius": np.float64(radius),
-        "version": np.str_(__version__),
-        "argv": np.array(sys.argv, dtype=str),
-        "scene": np.str_(scene.path),
-        "min_scatter": np.int64(scene.min_scatter),
-        "max_scatter": np.int64(scene.max_scatter),
-    }
-    data.update(extra or {})
-    return data
-
-
-def _tmp_name(path: str) -> str:
-    folder, base = os.path.split(os.path.abspath(path))
-    stem, ext = os.path.splitext(base)
-    return os.path.join(folder, f".{stem}.{os.getpid()}.tmp{ext}")
-
-
-def _write_all(jobs: list) -> None:
-    """Write every ``(path, writer)`` to a temporary name, then move all into place.
-
-    A failure leaves none of the outputs (nor temporary files) behind.
-    """
-    temps = []
-    try:
-        for path, writer in jobs:
-            tmp = _tmp_name(path)
-            temps.append((tmp, path))
-            writer(tmp)
-        for tmp, path in temps:
-            os.replace(tmp, path)
-    finally:
-        for tmp, _ in temps:
-            if os.path.exists(tmp):
-                os.remove(tmp)
-
-
-def _npz_writer(data: dict):
-    def write(tmp: str) -> None:
-        with open(tmp, "wb") as f:  # a file object: savez adds no ".npz" suffix
-            np.savez_compressed(f, **data)
-
-    return write
-
-
-def _png_writer(linear_rgb):
-    from psurf_core import images
-
-    def write(tmp: str) -> None:
-        images.write_png(tmp, images.tone_map(linear_rgb), atomic=False)
-
-    return write
-
-
-# --------------------------------------------------------------------------- render
-
-
-def cmd_render(args) -> int:
-    from psurf_core import RenderSettings
-    from psurf_core.render import render
-
-    _check_output("--out", args.out)
-    if args.png is not None:
-        _check_output("--png", args.png)
-    if args.exr is not None:
-        _check_output("--exr", args.exr)
-        from psurf_core.images import can_write_exr
-
-        ok, why = can_write_exr()
-        if not ok:
-            raise CliError(f"--exr {args.exr}: {why}")
-
-    scene = _load_scene(args.scene)
-    scene = _with_scatter(scene, args.min_scatter, args.max_scatter)
-    est = _estimator(args.estimator, scene)
-    _note_scatter_range(est, scene)
-
-    settings_kw = {"photons": args.photons, "spp": args.spp, "radius": args.radius,
-                   "radius_shrink": args.radius_shrink}
-    if args.memory_budget is not None:
-        settings_kw["memory_budget_mib"] = args.memory_budget
-    settings = RenderSettings(**settings_kw)
-    radius = _initial_radius(est, scene, settings)
-    if radius == 0.0 and (args.radius is not None or args.radius_shrink != 1.0):
-        _note(f"--radius/--radius-shrink ignored: estimator '{args.estimator}' has no kernel")
-
-    passes = None if args.time is not None else (args.passes or DEFAULT_PASSES)
-    on_pass, close = _progress(args.estimator, passes, args.time)
-    try:
-        result = render(scene, est, settings, passes=passes, time_budget=args.time,
-                        seed=args.seed, on_pass=on_pass)
-    finally:
-        close()
-
-    jobs = [(args.out, _npz_writer(_npz_payload(result, radius, scene, {
-        "radius_shrink": np.float64(args.radius_shrink),
-        "memory_budget_mib": np.int64(settings.memory_budget_mib)})))]
-    if args.png is not None:
-        jobs.append((args.png, _png_writer(result.mean)))
-    if args.exr is not None:
-        from psurf_core.images import write_exr
-
-        jobs.append((args.exr, lambda tmp: write_exr(tmp, result.mean)))
-    _write_all(jobs)
-    written = ", ".join(p for p, _ in jobs)
-    budget = "" if est.reference else f" x {result.photons_per_pass} photons"
-    print(f"{args.estimator}: {_plural(result.passes, 'pass')}{budget}, spp {result.spp}, "
-          f"{result.seconds:.2f} s -> {written}")
-    return 0
-
-
-def _with_scatter(scene, lo: int | None, hi: int | None):
-    """Apply ``--min-scatter/--max-scatter`` and check the combined range."""
-    if lo is not None and lo < 1:
-        raise CliError(f"--min-scatter: must be >= 1, got {lo}")
-    new_lo = scene.min_scatter if lo is None else lo
-    new_hi = scene.max_scatter if hi is None else hi
-    if new_hi != -1 and new_hi < new_lo:
-        if hi is not None:
-            raise CliError(f"--max-scatter: must be >= min_scatter ({new_lo}) or -1, got {hi}")
-        raise CliError(f"--min-scatter: must be <= the scene's max_scatter ({new_hi}), got {lo}")
-    return scene.with_scatter(lo, hi)
-
-
-def _plural(n: int, word: str) -> str:
-    return f"{n} {word}" + ("" if n == 1 else "es" if word.endswith("s") else "s")
-
-
-def _note(text: str) -> None:
-    print(f"{PROG}: note: {text}", file=sys.stderr)
-
-
-def _note_scatter_range(est, scene) -> None:
-    """Warn when the estimator covers none of the scatter range (a black image)."""
-    if est.reference or not est.techniques or scene.max_scatter == -1:
-        return
-    if all(t.min_k > scene.max_scatter for t in est.techniques):
-        k = min(t.min_k for t in est.techniques)
-        _note(f"estimator '{est.spec}' estimates K >= {k} scattering events only; the scatter "
-              f"range [{scene.min_scatter}, {scene.max_scatter}] gives a black image")
 
 
 # --------------------------------------------------------------------------- demo

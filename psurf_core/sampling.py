@@ -66,8 +66,14 @@ def phase_value(mu: np.ndarray, g: float) -> np.ndarray:
     mu = np.asarray(mu, dtype=float)
     if g == 0.0:
         return np.full(mu.shape, INV_4PI)
-    denom = 1.0 + g * g - 2.0 * g * np.clip(mu, -1.0, 1.0)
-    return INV_4PI * (1.0 - g * g) / (denom * np.sqrt(denom))
+    mu = np.clip(mu, -1.0, 1.0)
+    # 1 + g^2 - 2 g mu written as a sum of non-negative terms: the textbook form cancels to
+    # 0 (an infinite rho, then NaN) at mu = +-1 when |g| is within ~1e-8 of 1.
+    if g > 0.0:
+        denom = (1.0 - g) ** 2 + 2.0 * g * (1.0 - mu)
+    else:
+        denom = (1.0 + g) ** 2 - 2.0 * g * (1.0 + mu)
+    return INV_4PI * ((1.0 - g) * (1.0 + g)) / (denom * np.sqrt(denom))
 
 
 def sample_phase_cos(g: float, u: np.ndarray) -> np.ndarray:
