@@ -559,6 +559,8 @@ def cmd_render(args) -> int:
 
     # Every input is valid (notes come only now, so that an error is the only line).
     note_scatter_range(est, scene)
+    for text in est.notes:  # lights / scatter counts it leaves unestimated, dropped members
+        note(text)
     if radius == 0.0 and (args.radius is not None or args.radius_shrink != 1.0):
         note(f"--radius/--radius-shrink ignored: estimator '{args.estimator}' has no kernel")
 
