@@ -78,15 +78,16 @@ def build_parser() -> Parser:
                                                                  display) planes vs reference
                                                                  images in DIR
               screenshot SCENE.toml --stage STAGE --pixel X,Y    one step of the app, off-screen
+              compare SCENE.toml --estimators A,B --time S       equal-time variance study
 
             Run 'python app.py render --help' for the render options."""),
         epilog=f"estimators (--estimator NAME):\n{estimators}",
     )
     top.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot}",
+    sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot,compare}",
                              parser_class=Parser)
 
-    add_render_parser(sub, estimators)
+    render_parser = add_render_parser(sub, estimators)
 
     d = sub.add_parser(
         "demo",
@@ -117,6 +118,10 @@ def build_parser() -> Parser:
     from ui.cli import add_screenshot_parser  # the UI owns the screenshot command
 
     add_screenshot_parser(sub)
+
+    from ui.compare_cli import add_compare_parser  # equal-time study; --dask/--workers
+
+    add_compare_parser(sub, render_parser=render_parser)
     return top
 
 
@@ -292,7 +297,8 @@ def main(argv: list[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         if getattr(args, "func", None) is None:
-            raise CliError("a subcommand is required: render, demo or screenshot (see --help)")
+            raise CliError("a subcommand is required: render, demo, screenshot or compare "
+                           "(see --help)")
         return args.func(args)
     except (CliError, SceneError) as e:
         print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)

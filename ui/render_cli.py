@@ -592,8 +592,12 @@ def cmd_render(args) -> int:
             result = RenderResult(acc.mean.copy(), acc.variance, acc.n, settings.photons,
                                   settings.spp, 0.0, est.spec, args.seed, acc)
         else:
-            result = render(scene, est, settings, passes=passes, time_budget=time_budget,
-                            seed=args.seed, accumulator=acc, on_pass=on_pass)
+            from ui.compare_cli import maybe_distributed  # --dask / --workers
+
+            kw = dict(passes=passes, time_budget=time_budget, seed=args.seed, accumulator=acc,
+                      on_pass=on_pass)
+            result = (maybe_distributed(args, scene, est, settings, error=CliError, **kw)
+                      or render(scene, est, settings, **kw))
     except KeyboardInterrupt:
         close()
         return _interrupted(ckpt, args)

@@ -1,0 +1,231 @@
+"""Passes on a Dask distributed cluster, merged in pass order: the same image as one process.
+
+Passes are independent (pass ``i`` draws all its randomness from ``SeedSequence([seed, i])``),
+so they can run anywhere. :func:`render_distributed` submits
+``render_pass(scene, parse_estimator(spec, scene), i, seed, settings)`` per pass to a Dask
+scheduler, gathers the pass images and adds them to one :class:`~psurf_core.accumulate.Welford`
+**in pass order** with ``acc.add`` (the sequential Welford update, not the pairwise merge), so
+``mean`` and ``var`` are bit-identical to :func:`psurf_core.render.render` with the same seed,
+settings and pass count, whatever the number of workers or the order in which passes finish.
+
+Only this module imports ``dask.distributed``, and only when called: the default render stays
+single-process with no Dask running. ``address`` connects to an existing scheduler (its
+workers must be able to import the same psurf version); ``workers=N`` starts a local cluster
+of N single-threaded worker processes on 127.0.0.1 for the duration of the call.
+
+Time-budget mode keeps at most ``2 x workers`` passes in flight, stops submitting once
+``time_budget`` seconds are spent, and lets the passes in flight finish; they are all merged
+(the analogue of "the pass in flight finishes"), so the result is always passes ``0..n-1``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from contextlib import contextmanager
+
+import numpy as np
+
+from .accumulate import Welford
+from .estimators import Estimator, parse_estimator
+from .render import RenderResult, RenderSettings, render_pass
+from .scene import Scene
+
+__all__ = ["DistributedError", "cluster_client", "render_distributed"]
+
+#: Seconds to wait for a scheduler (``address``) to answer.
+CONNECT_TIMEOUT = 10.0
+
+
+class DistributedError(RuntimeError):
+    """Dask is missing, the scheduler cannot be reached, or its workers cannot run psurf."""
+
+
+def _pass_task(scene: Scene, spec: str, pass_index: int, seed: int,
+               settings: RenderSettings) -> np.ndarray:
+    """Run on a worker: one pass's (H, W, 3) float64 image."""
+    return render_pass(scene, parse_estimator(spec, scene), pass_index, seed, settings)
+
+
+def _worker_version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+@contextmanager
+def cluster_client(address: str | None = None, workers: int | None = None):
+    """A ``dask.distributed.Client`` on ``address`` or on a new local cluster of ``workers``
+    single-threaded processes (loopback only); both are closed on exit.
+
+    Raises
+    ------
+    DistributedError
+        Dask is not installed, both or neither of ``address``/``workers`` given, the
+        scheduler does not answer, it has no workers, or its workers cannot import psurf or
+        run a different psurf version.
+    """
+    if (address is None) == (workers is None):
+        raise DistributedError("give exactly one of a scheduler address or a worker count")
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError as e:
+        raise DistributedError(f"dask.distributed is not installed ({e}); "
+                               "pip install 'dask[distributed]'") from None
+    cluster = client = None
+    try:
+        if address is not None:
+            try:
+                client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+            except (OSError, TimeoutError, ValueError) as e:
+                raise DistributedError(f"cannot connect to the Dask scheduler at {address}: "
+                                       f"{' '.join(str(e).split()) or type(e).__name__}") from None
+        else:
+            if workers < 1:
+                raise DistributedError(f"the worker count must be >= 1, got {workers}")
+            try:
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address=None,
+                                       silence_logs=logging.ERROR)
+                client = Client(cluster, set_as_default=False)
+            except (OSError, TimeoutError, RuntimeError) as e:
+                raise DistributedError(f"cannot start a local Dask cluster of {workers} "
+                                       f"workers: {type(e).__name__}: {e}") from None
+        _check_workers(client, address)
+        yield client
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _check_workers(client, address) -> None:
+    from . import __version__
+
+    where = f"the scheduler at {address}" if address else "the local cluster"
+    try:
+        client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+    except (TimeoutError, OSError):
+        raise DistributedError(f"{where} has no workers (waited {CONNECT_TIMEOUT:g} s)") from None
+    try:
+        versions = client.run(_worker_version)
+    except Exception as e:  # an import failure on a worker comes back as any exception
+        raise DistributedError(f"the workers of {where} cannot import psurf_core "
+                               f"({type(e).__name__}: {e}); install psurf on them") from None
+    bad = {w: v for w, v in versions.items() if v != __version__}
+    if bad:
+        w, v = next(iter(bad.items()))
+        raise DistributedError(f"worker {w} of {where} runs psurf {v}, this is {__version__}")
+
+
+def _n_workers(client) -> int:
+    info = client.scheduler_info()
+    return max(1, sum(int(w.get("nthreads", 1)) for w in info.get("workers", {}).values()))
+
+
+def render_distributed(
+    scene: Scene,
+    estimator: str | Estimator,
+    settings: RenderSettings,
+    *,
+    passes: int | None = None,
+    time_budget: float | None = None,
+    seed: int = 0,
+    address: str | None = None,
+    workers: int | None = None,
+    client=None,
+    accumulator: Welford | None = None,
+    on_pass: Callable[[int, Welford, float], bool | None] | None = None,
+    max_in_flight: int | None = None,
+) -> RenderResult:
+    """Progressive render whose passes run on Dask workers; the result equals
+    :func:`psurf_core.render.render` with the same arguments.
+
+    Parameters
+    ----------
+    scene : Scene
+        Sent to the workers once (scattered), not re-read from its file.
+    estimator : str or Estimator
+        The spec (an ``Estimator`` is sent as its ``spec``); each pass parses it on its worker
+        exactly as the single-process path does.
+    settings : RenderSettings
+    passes, time_budget : int, float
+        Stop after ``passes`` passes in total, or stop submitting after ``time_budget``
+        seconds (passes in flight finish and count; at least one pass). One pass when neither.
+    seed : int
+    address, workers
+        An existing scheduler, or a local cluster of ``workers`` processes to start; or pass a
+        connected ``client`` (left open).
+    accumulator : Welford, optional
+        Continue an earlier render (its ``n`` passes are skipped).
+    on_pass : callable(i, acc, elapsed) -> bool or None
+        Called after each pass is merged (in pass order); ``False`` stops (passes in flight
+        are cancelled and not merged).
+    max_in_flight : int, optional
+        Passes submitted but not merged; default ``2 x`` the cluster's worker threads.
+
+    Raises
+    ------
+    DistributedError
+        See :func:`cluster_client`. A pass that fails on a worker re-raises its exception.
+    """
+    if client is None:
+        with cluster_client(address, workers) as c:
+            return render_distributed(scene, estimator, settings, passes=passes,
+                                      time_budget=time_budget, seed=seed, client=c,
+                                      accumulator=accumulator, on_pass=on_pass,
+                                      max_in_flight=max_in_flight)
+    from dask.distributed import wait
+
+    spec = estimator.spec if isinstance(estimator, Estimator) else str(estimator)
+    if passes is None and time_budget is None:
+        passes = 1
+    cam = scene.camera
+    acc = accumulator if accumulator is not None else Welford.empty((cam.height, cam.width, 3))
+    window = max_in_flight if max_in_flight is not None else 2 * _n_workers(client)
+    window = max(1, int(window))
+
+    t0 = time.perf_counter()
+    scene_f = client.scatter(scene, broadcast=True, hash=False)
+    done_before = acc.n
+    next_i = acc.n
+    in_flight: dict[int, object] = {}
+    finished: dict[int, np.ndarray] = {}
+    submitting = True
+    try:
+        while True:
+            while submitting and len(in_flight) < window and (passes is None or next_i < passes):
+                in_flight[next_i] = client.submit(_pass_task, scene_f, spec, next_i, seed,
+                                                  settings, pure=False)
+                next_i += 1
+            if not in_flight:
+                break
+            with client.as_current():  # wait() looks for a current client
+                wait(list(in_flight.values()), return_when="FIRST_COMPLETED")
+            for i in sorted(in_flight):
+                f = in_flight[i]
+                if f.done():
+                    finished[i] = f.result()  # re-raises a worker's exception
+                    del in_flight[i]
+            stop = False
+            while acc.n in finished:
+                i = acc.n
+                acc.add(finished.pop(i))
+                elapsed = time.perf_counter() - t0
+                if on_pass is not None and on_pass(i, acc, elapsed) is False:
+                    stop = True
+                    break
+            if stop:
+                break
+            elapsed = time.perf_counter() - t0
+            if time_budget is not None and elapsed >= time_budget and next_i > done_before:
+                submitting = False
+            if passes is not None and acc.n >= passes:
+                break
+    finally:
+        for f in in_flight.values():
+            f.cancel()
+    return RenderResult(acc.mean.copy(), acc.variance, acc.n, settings.photons, settings.spp,
+                        time.perf_counter() - t0, spec, seed, acc)

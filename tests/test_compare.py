@@ -1,0 +1,233 @@
+"""Equal-time study (``compare``): the JSON schema, ratios, the relMSE definition, outputs and
+one-line errors. A 16x12 scene, 1 s per estimator and run."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from psurf_core import load_scene
+from psurf_core.render import RenderSettings
+from psurf_core.study import (
+    OUTPUT_FILES,
+    RELMSE_EPS,
+    compare,
+    load_reference,
+    relmse,
+    relmse_map,
+    write_outputs,
+    write_reference_npz,
+)
+
+ROOT = Path(__file__).resolve().parent.parent
+
+TINY = """
+[camera]
+position   = [0.0, 0.0, -4.0]
+look_at    = [0.0, 0.0, 0.0]
+up         = [0.0, 1.0, 0.0]
+fov_y      = 40.0
+resolution = [16, 12]
+
+[medium]
+bounds_min = [-1.0, -1.0, -1.0]
+bounds_max = [ 1.0,  1.0,  1.0]
+sigma_s = 0.8
+sigma_a = 0.2
+phase   = { type = "isotropic" }
+
+[[lights]]
+type = "area"
+corner   = [-0.3, 0.95, -0.3]
+edge_u   = [0.6, 0.0, 0.0]
+edge_v   = [0.0, 0.0, 0.6]
+radiance = [3.0, 3.0, 3.0]
+
+[render]
+min_scatter = 2
+max_scatter = 2
+"""
+
+ROW_KEYS = {"estimator", "passes", "mean_variance", "relmse", "ratio"}
+
+
+def run_module(*args, cwd: Path, timeout: float = 120.0) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["MPLBACKEND"] = "Agg"
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
+    return subprocess.run([sys.executable, "-m", "ui.compare_cli", *map(str, args)], cwd=cwd,
+                          env=env, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    d = tmp_path_factory.mktemp("compare")
+    path = d / "tiny.toml"
+    path.write_text(TINY)
+    return d, load_scene(str(path))
+
+
+@pytest.fixture(scope="module")
+def study(tiny):
+    """The path tracer against photon planes at K = 2, two runs of 1 s each: planes are far
+    better per second there (the path tracer has 50x their variance at equal time)."""
+    d, scene = tiny
+    s = compare(scene, ["reference", "planes"], 1.0, runs=2, seed=0,
+                settings=RenderSettings(photons=500), reference_seconds=2.0)
+    out = d / "out"
+    out.mkdir()
+    write_outputs(str(out), s)
+    write_reference_npz(str(out / "reference.npz"), s, scene)
+    return s, out
+
+
+def test_compare_json_schema(study):
+    s, out = study
+    data = json.loads((out / "compare.json").read_text())
+    assert {"scene", "seconds", "results"} <= set(data)
+    assert data["seconds"] == 1.0 and data["runs"] == 2
+    assert "arrays" not in data
+    assert [r["estimator"] for r in data["results"]] == ["reference", "planes"]
+    for r in data["results"]:
+        assert ROW_KEYS <= set(r)
+        assert r["passes"] >= 2 and len(r["passes_per_run"]) == 2
+        assert [run["seed"] for run in r["runs"]] == [0, 1]
+        assert r["mean_variance"] > 0 and r["relmse"] > 0
+        # mean_variance is the pixel mean of the per-pass variance / passes, run-averaged
+        for run in r["runs"]:
+            assert run["mean_variance"] == pytest.approx(
+                run["per_pass_variance"] / run["passes"])
+        curve = r["runs"][0]["curve"]
+        pairs = zip(curve, curve[1:], strict=False)
+        assert curve and all(b[0] >= a[0] and b[1] > a[1] for a, b in pairs)
+        assert curve[-1][1] == r["runs"][0]["passes"]
+        assert curve[-1][2] == pytest.approx(r["runs"][0]["relmse"])
+    ref = data["reference"]
+    assert ref["source"] == "render" and ref["passes"] > 0 and ref["seconds"] >= 2.0
+    assert ref["seed"] == 2  # seed + runs: no run uses it
+    assert 0 < ref["relmse_floor"] < data["results"][1]["relmse"]
+
+
+def test_ratio_first_is_one_and_better_estimator_below_one(study):
+    s, _ = study
+    first, planes = s["results"]
+    assert first["ratio"] == 1.0 and first["relmse_ratio"] == 1.0
+    assert planes["ratio"] == pytest.approx(planes["mean_variance"] / first["mean_variance"])
+    assert planes["ratio"] < 0.3
+    assert planes["relmse_ratio"] < 1.0
+
+
+def test_outputs_written(study):
+    _, out = study
+    for name in OUTPUT_FILES:
+        assert (out / name).stat().st_size > 0
+    md = (out / "compare.md").read_text()
+    assert "| `planes` |" in md and "relMSE" in md
+    import imageio.v3 as iio
+
+    for name in ("variance.png", "error.png", "renders.png", "error_vs_time.png"):
+        img = iio.imread(out / name)
+        assert img.ndim == 3 and img.shape[0] > 100 and img.std() > 0
+
+
+def test_relmse_definition():
+    rng = np.random.default_rng(1)
+    ref = rng.uniform(0.0, 2.0, (3, 4, 3))
+    assert relmse(ref, ref) == 0.0
+    img = ref + 0.1
+    den = ref**2 + RELMSE_EPS * ref.mean() ** 2
+    assert relmse(img, ref) == pytest.approx(float(np.mean(0.01 / den)))
+    assert relmse_map(img, ref).shape == (3, 4)
+    # dark pixels are bounded by the eps term, not infinite
+    ref[0, 0] = 0.0
+    assert np.isfinite(relmse(img, ref))
+
+
+def test_reference_file_round_trip_and_checks(study, tiny):
+    s, out = study
+    d, scene = tiny
+    ref = load_reference(str(out / "reference.npz"), scene)
+    assert np.allclose(ref.mean, s["arrays"]["reference"], rtol=1e-6)
+    assert ref.passes == s["reference"]["passes"]
+    from psurf_core.scene import SceneError
+
+    with pytest.raises(SceneError, match="scatter counts"):
+        load_reference(str(out / "reference.npz"), scene.with_scatter(1, 2))
+    with pytest.raises(SceneError, match="file not found"):
+        load_reference(str(d / "missing.npz"), scene)
+
+
+def test_cli_with_reference_file(study, tiny, tmp_path):
+    _, out = study
+    d, _ = tiny
+    r = run_module("compare", d / "tiny.toml", "--estimators", "planes,points", "--time", "1",
+                   "--photons", "500,300", "--reference", out / "reference.npz",
+                   "--out", tmp_path / "cli", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "cli" / "compare.json").read_text())
+    assert [x["photons_per_pass"] for x in data["results"]] == [500, 300]
+    assert data["reference"]["source"].endswith("reference.npz")
+    assert data["results"][0]["ratio"] == 1.0
+    assert not (tmp_path / "cli" / "reference.npz").exists()  # nothing rendered for it
+    assert "| `points` |" in r.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--estimators", "planes,nope"], "unknown estimator 'nope'"),
+    (["--estimators", "planes,planes"], "listed twice"),
+    (["--estimators", "planes", "--photons", "1,2"], "--photons"),
+    (["--estimators", "planes", "--min-scatter", "3", "--max-scatter", "2"], "--max-scatter"),
+    (["--estimators", "planes", "--time", "0"], "--time"),
+    (["--estimators", "planes", "--clock", "cpu", "--workers", "2"], "--clock cpu"),
+])
+def test_cli_errors_are_one_line(tiny, tmp_path, args, message):
+    d, _ = tiny
+    argv = ["compare", d / "tiny.toml", *args, "--out", tmp_path / "o"]
+    if "--time" not in args:
+        argv += ["--time", "1"]
+    r = run_module(*argv, cwd=tmp_path)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("psurf: error: ") and message in lines[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_default_is_single_process_without_dask(tiny):
+    """Without --dask/--workers nothing of Dask is imported (the render hook returns None)."""
+    d, _ = tiny
+    code = (
+        "import sys, argparse\n"
+        "from psurf_core import load_scene\n"
+        "from psurf_core.render import RenderSettings\n"
+        "from psurf_core.study import compare\n"
+        "from ui.compare_cli import maybe_distributed\n"
+        f"sc = load_scene({str(d / 'tiny.toml')!r})\n"
+        "a = argparse.Namespace(dask=None, workers=None)\n"
+        "assert maybe_distributed(a, sc, 'planes', RenderSettings(photons=100), passes=1) is None\n"
+        "compare(sc, ['planes'], 0.2, reference_seconds=0.2,"
+        " settings=RenderSettings(photons=100))\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))\n"
+    )
+    env = {**os.environ, "MPLBACKEND": "Agg",
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                       timeout=120, cwd=d)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]"
+
+
+def test_cpu_clock_budget(tiny):
+    """``clock="cpu"``: every run spends at least the budget of this process's CPU time."""
+    _, scene = tiny
+    s = compare(scene, ["planes"], 0.3, settings=RenderSettings(photons=300),
+                reference_seconds=0.3, clock="cpu")
+    row = s["results"][0]
+    assert s["clock"] == "cpu" and row["runs"][0]["cpu_seconds"] >= 0.3
+    assert row["seconds_per_run"] == row["cpu_seconds_per_run"]
+    assert row["runs"][0]["curve"][-1][0] >= 0.3

@@ -1,0 +1,433 @@
+"""``python app.py compare``: equal-time study of estimators; ``--dask``/``--workers`` flags.
+
+``app.py`` wires it in with::
+
+    from ui.compare_cli import add_compare_parser, maybe_distributed
+    add_compare_parser(sub, render_parser=r)   # the compare command + --dask/--workers on render
+    result = maybe_distributed(args, scene, est, settings, passes=passes, time_budget=args.time,
+                               seed=args.seed, on_pass=on_pass, error=CliError) or render(...)
+
+``run_compare(args)`` returns the exit code; every bad input is one line ``psurf: error: ...``
+on stderr and exit code 2, before anything is rendered. Numpy/matplotlib only (no pyvista):
+the study itself is :mod:`psurf_core.study`, the cluster :mod:`psurf_core.distributed`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shlex
+import sys
+import textwrap
+
+PROG = "psurf"
+
+#: Defaults of ``compare`` (photons per pass: small enough that the slowest photon-surface
+#: MIS sets still finish many passes in a short budget).
+DEFAULT_PHOTONS = 1000
+DEFAULT_SPP = 1
+DEFAULT_RUNS = 1
+DEFAULT_SEED = 0
+
+
+# --------------------------------------------------------------------------- flag types
+
+
+def _int(text: str, minimum: int, what: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
+    if v < minimum:
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+    return v
+
+
+def _positive_int(text: str) -> int:
+    return _int(text, 1, "an integer > 0")
+
+
+def _nonneg_int(text: str) -> int:
+    return _int(text, 0, "an integer >= 0")
+
+
+def _scatter_int(text: str) -> int:
+    v = _int(text, -1, "an integer >= 1 or -1")
+    if v == 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1 or -1, got {text!r}")
+    return v
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return v
+
+
+def _shrink(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}") from None
+    if not 0.0 < v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}")
+    return v
+
+
+def _photons(text: str) -> list[int]:
+    try:
+        return [_positive_int(t.strip()) for t in text.split(",")]
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"must be one integer > 0 or a comma-separated list "
+                                         f"of them, got {text!r}") from None
+
+
+def _address(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must be a scheduler address, e.g. tcp://host:8786")
+    return text.strip()
+
+
+def _specs(text: str) -> list[str]:
+    specs = [s.strip() for s in text.split(",")]
+    if not text.strip() or any(not s for s in specs):
+        raise argparse.ArgumentTypeError(f"must be a comma-separated list of estimator names "
+                                         f"(e.g. beams,paper-single), got {text!r}")
+    dup = sorted({s for s in specs if specs.count(s) > 1})
+    if dup:
+        raise argparse.ArgumentTypeError(f"estimator {dup[0]!r} is listed twice")
+    return specs
+
+
+# --------------------------------------------------------------------------- parsers
+
+
+def add_dask_flags(parser: argparse.ArgumentParser) -> None:
+    """``--dask ADDRESS`` / ``--workers N`` (mutually exclusive) on ``parser``."""
+    g = parser.add_argument_group("distributed passes (Dask; default: one process, no Dask)")
+    x = g.add_mutually_exclusive_group()
+    x.add_argument("--dask", type=_address, default=None, metavar="ADDRESS",
+                   help="send passes to the Dask scheduler at ADDRESS (e.g. tcp://host:8786; "
+                        "its workers need the same psurf installed); passes are merged in "
+                        "pass order, so the image equals a single-process run")
+    x.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                   help="start a local Dask cluster of N single-threaded worker processes on "
+                        "127.0.0.1 for this command")
+
+
+def add_compare_parser(subparsers, render_parser: argparse.ArgumentParser | None = None):
+    """Add the ``compare`` subcommand (``func=run_compare``); with ``render_parser``, also
+    give it the ``--dask``/``--workers`` flags (see :func:`maybe_distributed`)."""
+    if render_parser is not None:
+        add_dask_flags(render_parser)
+    p = subparsers.add_parser(
+        "compare",
+        allow_abbrev=False,
+        help="equal-time comparison of estimators (table, variance/error maps, error vs time)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=textwrap.dedent(f"""\
+            Render SCENE.toml with every estimator of --estimators for the same wall time
+            (--time SECONDS per run; --runs R independent runs r = 0..R-1 with seeds S + r) and
+            write into DIR:
+              compare.json   {{"scene", "seconds", "results": [{{"estimator", "passes",
+                             "mean_variance", "relmse", "ratio", ...}}], "reference", ...}}
+              compare.md     the same as a Markdown table
+              variance.png   variance of each final image, side by side (one log scale)
+              error.png      per-pixel relative squared error vs the reference
+              renders.png    reference and final images at one exposure
+              error_vs_time.png   relMSE after every pass vs seconds
+              reference.npz  the reference, when it was rendered here (reuse: --reference)
+            mean_variance: pixel mean of (per-pass variance / passes); ratio: relative to the
+            first estimator ("Var: 0.23x"). relMSE = mean of (I - R)^2 / (R^2 + 0.01 mean(R)^2)
+            against --reference FILE.npz, or else a path-tracer reference rendered first for
+            --reference-time seconds (default 2 x --time x number of estimators).
+            The image holds only the scene's [render] scatter range (--min-scatter/--max-scatter
+            override it; single scattering: 1 and 1).
+            Defaults: --photons {DEFAULT_PHOTONS} --spp {DEFAULT_SPP} --runs {DEFAULT_RUNS} \
+--seed {DEFAULT_SEED}."""),
+    )
+    p.add_argument("scene", metavar="SCENE.toml", help="scene file (see SCENES.md)")
+    p.add_argument("--estimators", required=True, type=_specs, metavar="A,B,...",
+                   help="estimators to compare, comma-separated; ratios are relative to the "
+                        "first (e.g. beams,mis:ss-plane-uv+ss-plane-ut+ss-plane-vt)")
+    p.add_argument("--time", required=True, type=_positive_float, metavar="SECONDS",
+                   help="wall time per run and estimator (the pass in flight finishes)")
+    p.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                   help="what --time measures: wall time (default) or this process's CPU time "
+                        "(robust to other load on a shared machine; not with --dask/--workers)")
+    p.add_argument("--runs", type=_positive_int, default=DEFAULT_RUNS, metavar="R",
+                   help=f"independent runs per estimator (default {DEFAULT_RUNS})")
+    p.add_argument("--seed", type=_nonneg_int, default=DEFAULT_SEED, metavar="S",
+                   help=f"run r = 0..R-1 uses seed S + r; a rendered reference S + R "
+                        f"(default {DEFAULT_SEED})")
+    p.add_argument("--reference", default=None, metavar="FILE.npz",
+                   help="reference image (an app.py render or compare .npz of this scene and "
+                        "scatter range); default: render the path tracer first")
+    p.add_argument("--reference-time", type=_positive_float, default=None, metavar="SECONDS",
+                   help="time of the reference render (default 2 x --time x estimators)")
+    p.add_argument("--photons", type=_photons, default=[DEFAULT_PHOTONS], metavar="N[,N...]",
+                   help=f"photons per pass: one count for every estimator, or one per "
+                        f"estimator in --estimators order (default {DEFAULT_PHOTONS})")
+    p.add_argument("--spp", type=_positive_int, default=DEFAULT_SPP, metavar="K",
+                   help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
+    p.add_argument("--min-scatter", type=_scatter_int, default=None, metavar="A",
+                   help="override the scene's [render] min_scatter (>= 1)")
+    p.add_argument("--max-scatter", type=_scatter_int, default=None, metavar="B",
+                   help="override the scene's [render] max_scatter (>= A, or -1: unlimited)")
+    p.add_argument("--radius", type=_positive_float, default=None, metavar="R",
+                   help="initial kernel radius of kernel estimators (default: per technique)")
+    p.add_argument("--radius-shrink", type=_shrink, default=1.0, metavar="ALPHA",
+                   help="progressive radius reduction alpha in (0, 1] (default 1: fixed)")
+    p.add_argument("--memory-budget", type=_positive_int, default=None, metavar="MIB",
+                   help="memory bound of the chunked ray x primitive work in MiB")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (created if missing)")
+    add_dask_flags(p)
+    p.set_defaults(func=run_compare)
+    return p
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _fail(message: str) -> int:
+    print(f"{PROG}: error: {' '.join(str(message).split())}", file=sys.stderr)
+    return 2
+
+
+class _Bad(Exception):
+    """A bad input found while preparing (becomes one error line, exit 2)."""
+
+
+def _with_scatter(scene, lo, hi):
+    if lo is not None and lo < 1:
+        raise _Bad(f"--min-scatter: must be >= 1, got {lo}")
+    new_lo = scene.min_scatter if lo is None else lo
+    new_hi = scene.max_scatter if hi is None else hi
+    if new_hi != -1 and new_hi < new_lo:
+        if hi is not None:
+            raise _Bad(f"--max-scatter: must be >= min_scatter ({new_lo}) or -1, got {hi}")
+        raise _Bad(f"--min-scatter: must be <= the scene's max_scatter ({new_hi}), got {lo}")
+    return scene.with_scatter(lo, hi)
+
+
+def _parse(spec: str, scene):
+    from psurf_core.estimators import parse_estimator
+    from psurf_core.scene import SceneError
+    from psurf_core.techniques import UnknownTechnique
+
+    try:
+        return parse_estimator(spec, scene)
+    except SceneError as e:
+        raise _Bad(str(e)) from None
+    except UnknownTechnique as e:
+        raise _Bad(f"--estimators: {e} (see 'python app.py --help')") from None
+    except ModuleNotFoundError as e:
+        raise _Bad(f"--estimators {spec!r}: not available in this build ({e})") from None
+    except ValueError as e:
+        raise _Bad(f"--estimators {spec!r}: {e}") from None
+
+
+def _settings(args):
+    from psurf_core.render import RenderSettings
+
+    kw = {"photons": args.photons[0], "spp": args.spp, "radius": args.radius,
+          "radius_shrink": args.radius_shrink}
+    if args.memory_budget is not None:
+        kw["memory_budget_mib"] = args.memory_budget
+    return RenderSettings(**kw)
+
+
+def _check_out(path: str) -> None:
+    if not path:
+        raise _Bad("--out: empty path")
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise _Bad(f"--out {path}: exists and is not a directory")
+
+
+def _out_dir(path: str) -> None:
+    _check_out(path)
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as e:
+        raise _Bad(f"--out {path}: cannot create directory ({e.strerror})") from None
+    if not os.access(path, os.W_OK):
+        raise _Bad(f"--out {path}: directory is not writable")
+
+
+def _progress():
+    """``(progress, on_render, close)``: a tqdm bar per render on a terminal, and one summary
+    line per finished render on stdout."""
+    state = {"bar": None, "label": None}
+    tty = sys.stderr.isatty()
+
+    def progress(label, passes, elapsed, budget):
+        if not tty:
+            return
+        if state["label"] != label:
+            close()
+            from tqdm import tqdm
+
+            state["bar"] = tqdm(total=budget, desc=label, file=sys.stderr, leave=False,
+                                bar_format="{desc}: {percentage:3.0f}%|{bar}| "
+                                           "{n:.1f}/{total:.1f} s{postfix}")
+            state["label"] = label
+        bar = state["bar"]
+        bar.n = min(elapsed, budget)
+        bar.set_postfix_str(f"{passes} passes", refresh=False)
+        bar.refresh()
+
+    def on_render(label, res):
+        close()
+        print(f"{label}: {res.passes} pass{'' if res.passes == 1 else 'es'} in "
+              f"{res.seconds:.1f} s", flush=True)
+
+    def close():
+        if state["bar"] is not None:
+            state["bar"].close()
+        state["bar"] = state["label"] = None
+
+    return progress, on_render, close
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def _command_line() -> str | None:
+    """This process's command line as typed (app.py or the module entry), else None."""
+    prog = os.path.basename(sys.argv[0]) if sys.argv else ""
+    head = {"app.py": ["python", "app.py"], "compare_cli.py": ["python", "-m", "ui.compare_cli"]}
+    if prog not in head:
+        return None
+    return " ".join(shlex.quote(a) for a in [*head[prog], *sys.argv[1:]])
+
+
+def run_compare(args) -> int:
+    """Run ``compare``; returns 0, or 2 after one ``psurf: error:`` line."""
+    from psurf_core import study as st
+    from psurf_core.distributed import DistributedError
+    from psurf_core.scene import SceneError
+    from psurf_core.scene_io import load_scene
+
+    try:
+        _check_out(args.out)
+        try:
+            scene = load_scene(args.scene)
+        except SceneError as e:
+            raise _Bad(str(e)) from None
+        scene = _with_scatter(scene, args.min_scatter, args.max_scatter)
+        ests = [_parse(s, scene) for s in args.estimators]
+        reference = None
+        if args.reference is not None:
+            try:
+                reference = st.load_reference(args.reference, scene)
+            except SceneError as e:
+                raise _Bad(str(e)) from None
+        settings = _settings(args)
+        if args.clock == "cpu" and (args.dask is not None or args.workers is not None):
+            raise _Bad("--clock cpu measures this process only; use --clock wall with "
+                       f"--{'dask' if args.dask is not None else 'workers'}")
+        if len(args.photons) not in (1, len(ests)):
+            raise _Bad(f"--photons: give one count or one per estimator ({len(ests)}), got "
+                       f"{len(args.photons)}")
+        photons = args.photons * len(ests) if len(args.photons) == 1 else args.photons
+        _out_dir(args.out)
+    except _Bad as e:
+        return _fail(str(e))
+
+    if args.reference is not None and args.reference_time is not None:
+        print(f"{PROG}: note: --reference-time ignored: the reference is read from "
+              f"{args.reference}", file=sys.stderr)
+    command = _command_line()
+    progress, on_render, close = _progress()
+    kw = dict(runs=args.runs, seed=args.seed, reference=reference, settings=settings,
+              reference_seconds=args.reference_time, progress=progress, on_render=on_render,
+              command=command, photons=photons, clock=args.clock)
+    try:
+        if args.dask is not None or args.workers is not None:
+            from functools import partial
+
+            from psurf_core.distributed import cluster_client, render_distributed
+
+            with cluster_client(args.dask, args.workers) as client:
+                study = st.compare(scene, ests, args.time,
+                                   runner=partial(render_distributed, client=client), **kw)
+        else:
+            study = st.compare(scene, ests, args.time, **kw)
+    except DistributedError as e:
+        return _fail(f"--{'dask' if args.dask is not None else 'workers'}: {e}")
+    except (SceneError, ValueError) as e:
+        return _fail(str(e))
+    finally:
+        close()
+
+    try:
+        written = st.write_outputs(args.out, study)
+        if study["reference"]["source"] == "render":
+            ref_path = os.path.join(args.out, "reference.npz")
+            st.write_reference_npz(ref_path, study, scene)
+            written.append(ref_path)
+    except OSError as e:
+        return _fail(f"--out {args.out}: cannot write the results ({e})")
+    print()
+    print(st.format_table(study))
+    ref = study["reference"]
+    if ref["source"] == "render":
+        print(f"reference: path tracer, {ref['passes']} passes in {ref['seconds']:.1f} s; "
+              f"its noise alone gives relMSE {ref['relmse_floor']:.3g}")
+    for row in study["results"]:
+        for note in row["notes"]:
+            print(f"{PROG}: note: {row['estimator']}: {note}", file=sys.stderr)
+    for p in written:
+        print(p)
+    return 0
+
+
+def maybe_distributed(args, scene, estimator, settings, *, passes=None, time_budget=None,
+                      seed=0, on_pass=None, accumulator=None, error=None):
+    """The render command's hook: with ``--dask``/``--workers``, render the passes on Dask
+    (:func:`psurf_core.distributed.render_distributed`) and return the ``RenderResult``;
+    without them, return ``None`` (render in this process, nothing of Dask imported).
+
+    ``error`` is the exception class to raise for a cluster that cannot be used (``app.py``
+    passes its ``CliError``: one line, exit 2); ``DistributedError`` by default.
+    """
+    address, workers = getattr(args, "dask", None), getattr(args, "workers", None)
+    if address is None and workers is None:
+        return None
+    from psurf_core.distributed import DistributedError, render_distributed
+
+    try:
+        return render_distributed(scene, estimator, settings, passes=passes,
+                                  time_budget=time_budget, seed=seed, address=address,
+                                  workers=workers, accumulator=accumulator, on_pass=on_pass)
+    except DistributedError as e:
+        flag = "--dask" if address is not None else "--workers"
+        if error is None:
+            raise
+        raise error(f"{flag}: {e}") from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Stand-alone entry (``python -m ui.compare_cli compare ...``) until ``app.py`` wires it."""
+
+    class _Parser(argparse.ArgumentParser):
+        def error(self, message):
+            raise SystemExit(_fail(message))
+
+    top = _Parser(prog=PROG)
+    sub = top.add_subparsers(dest="command", parser_class=_Parser)
+    add_compare_parser(sub)
+    args = top.parse_args(argv)
+    if getattr(args, "func", None) is None:
+        return _fail("a subcommand is required: compare")
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
