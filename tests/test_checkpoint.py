@@ -65,7 +65,8 @@ def same_image(a: dict, b: dict) -> None:
 
 
 def one_line(err: str) -> str:
-    lines = err.strip().splitlines()
+    """The one line that matters; informational ``psurf: note:`` lines are allowed beside it."""
+    lines = [ln for ln in err.strip().splitlines() if not ln.startswith("psurf: note:")]
     assert len(lines) == 1 and "Traceback" not in err, err
     return lines[0]
 
