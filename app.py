@@ -39,7 +39,8 @@ from ui.render_cli import write_all as _write_all
 PROG = "psurf"
 
 #: Defaults of ``demo``.
-DEMO_SCENE = os.path.join("scenes", "area.toml")
+# The bundled default scene, found next to this file whatever the working directory.
+DEMO_SCENE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "scenes", "area.toml")
 DEMO_OUT = "out"
 DEMO_SECONDS = 10.0
 DEMO_ESTIMATORS = ("planes", "reference")
@@ -79,12 +80,14 @@ def build_parser() -> Parser:
                                                                  images in DIR
               screenshot SCENE.toml --stage STAGE --pixel X,Y    one step of the app, off-screen
               compare SCENE.toml --estimators A,B --time S       equal-time variance study
+              lecture [--state N] [--screenshot OUT.png]         the tutorials' key states,
+                                                                 full-screen (-> / <-)
 
             Run 'python app.py render --help' for the render options."""),
         epilog=f"estimators (--estimator NAME):\n{estimators}",
     )
     top.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot,compare}",
+    sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot,compare,lecture}",
                              parser_class=Parser)
 
     render_parser = add_render_parser(sub, estimators)
@@ -122,6 +125,10 @@ def build_parser() -> Parser:
     from ui.compare_cli import add_compare_parser  # equal-time study; --dask/--workers
 
     add_compare_parser(sub, render_parser=render_parser)
+
+    from ui.lecture import add_lecture_parser  # lecture mode: the tutorials' key states
+
+    add_lecture_parser(sub)
     return top
 
 
@@ -293,11 +300,16 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (2 for every bad input)."""
     from psurf_core import SceneError
 
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if not argv or argv[0].endswith(".toml"):
+        # `python app.py [SCENE.toml]` opens the app (the demo: a window, or PNGs headless).
+        argv = ["demo", *argv]
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
         if getattr(args, "func", None) is None:
-            raise CliError("a subcommand is required: render, demo, screenshot or compare "
+            raise CliError("a subcommand is required: render, demo, screenshot, compare or "
+                           "lecture "
                            "(see --help)")
         return args.func(args)
     except (CliError, SceneError) as e:

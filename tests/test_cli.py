@@ -191,9 +191,11 @@ def test_out_directory_must_exist(tmp_path):
     assert not (tmp_path / "no").exists()
 
 
-def test_no_subcommand_exits_2(tmp_path):
-    r = run_cli(cwd=tmp_path)
+def test_unknown_subcommand_exits_2(tmp_path):
+    # (no arguments at all runs the demo: `python app.py [SCENE.toml]` opens the app)
+    r = run_cli("bogus", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.startswith("psurf: error: ")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_exr_checked_before_rendering(tmp_path):
