@@ -367,7 +367,14 @@ class App:
         p.add_timer_event(max_steps=10**9, duration=200, callback=self.tick)
 
     def redraw(self, keep_camera: bool = True) -> None:
-        compose(self.p, self.s, keep_camera=keep_camera)
+        # Once a window is shown pyvista renders after every added actor; composing a stage
+        # adds dozens, so rendering is held until the whole frame is built (as in lecture mode).
+        held = self.p.suppress_rendering
+        self.p.suppress_rendering = True
+        try:
+            compose(self.p, self.s, keep_camera=keep_camera)
+        finally:
+            self.p.suppress_rendering = held
         self.p.render()
 
     def next(self) -> None:
