@@ -15,11 +15,18 @@ the study itself is :mod:`psurf_core.study`, the cluster :mod:`psurf_core.distri
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import shlex
 import sys
 import textwrap
+
+from ui.render_cli import (
+    nonneg_int,
+    positive_float,
+    positive_int,
+    scatter_int,
+    shrink,
+)
 
 PROG = "psurf"
 
@@ -34,49 +41,9 @@ DEFAULT_SEED = 0
 # --------------------------------------------------------------------------- flag types
 
 
-def _int(text: str, minimum: int, what: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
-    if v < minimum:
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
-    return v
-
-
-def _positive_int(text: str) -> int:
-    return _int(text, 1, "an integer > 0")
-
-
-def _nonneg_int(text: str) -> int:
-    return _int(text, 0, "an integer >= 0")
-
-
-def _scatter_int(text: str) -> int:
-    v = _int(text, -1, "an integer >= 1 or -1")
-    if v == 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1 or -1, got {text!r}")
-    return v
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return v
-
-
-def _shrink(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}") from None
-    if not 0.0 < v <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}")
-    return v
+# Numeric flag types are shared with ``render`` so both commands word their errors alike.
+_positive_int, _nonneg_int, _scatter_int = positive_int, nonneg_int, scatter_int
+_positive_float, _shrink = positive_float, shrink
 
 
 def _photons(text: str) -> list[int]:
