@@ -19,6 +19,7 @@ from .camera import Rays, camera_rays
 from .constants import DEFAULT_MEMORY_BUDGET_MIB
 from .estimators import Estimator
 from .geometry import Blockers, blockers_of
+from .mis import mis_weights
 from .scene import Scene
 from .techniques.base import PassContext, Technique
 from .trace import trace
@@ -131,8 +132,6 @@ def photon_pass(
                         continue
                     val = tech.evaluate(hits, prims, paths, rays, ctx)
                     if len(group) > 1:
-                        from .mis import mis_weights
-
                         val = val * mis_weights(tech, group, estimator.weighting, hits, prims,
                                                 paths, rays, ctx)[:, None]
                     if record is not None:
