@@ -28,6 +28,9 @@ from .trace import trace
 #: depend on the budget.
 PHOTON_BATCH = 1 << 15
 
+#: ``tally(tech, hits, prims, rays, unweighted, weighted)``: see :func:`photon_pass`.
+Tally = Callable[[Technique, object, object, Rays, np.ndarray, np.ndarray], None]
+
 #: Rough peak bytes per candidate ray-primitive pair in intersect + evaluate.
 _BYTES_PER_PAIR = 1200
 
@@ -108,8 +111,15 @@ def photon_pass(
     pass_index: int,
     blockers: Blockers,
     record: PassRecord | None = None,
+    tally: Tally | None = None,
 ) -> np.ndarray:
-    """Sum of per-photon contributions per ray (R, 3), not yet divided by the photon count."""
+    """Sum of per-photon contributions per ray (R, 3), not yet divided by the photon count.
+
+    ``tally(tech, hits, prims, rays, unweighted, weighted)`` (optional) sees every chunk of
+    hits with its per-photon contributions before (``unweighted``, (H, 3)) and after
+    (``weighted``) the MIS weight; both are the same array for a technique alone in its
+    group.
+    """
     out = np.zeros((len(rays), 3))
     n_batches = -(-settings.photons // PHOTON_BATCH)
     batch_ss = photon_ss.spawn(n_batches)
@@ -130,10 +140,12 @@ def photon_pass(
                     hits = tech.intersect(prims, rays, ray, prim, ctx)
                     if len(hits) == 0:
                         continue
-                    val = tech.evaluate(hits, prims, paths, rays, ctx)
+                    raw = val = tech.evaluate(hits, prims, paths, rays, ctx)
                     if len(group) > 1:
                         val = val * mis_weights(tech, group, estimator.weighting, hits, prims,
                                                 paths, rays, ctx)[:, None]
+                    if tally is not None:
+                        tally(tech, hits, prims, rays, raw, val)
                     if record is not None:
                         record.hits.setdefault((tech.name, b), []).append((hits, val))
                     _accumulate(out, hits.ray, val)
@@ -150,6 +162,7 @@ def render_pass(
     blockers: Blockers | None = None,
     pixels: np.ndarray | None = None,
     record: PassRecord | None = None,
+    tally: Tally | None = None,
 ) -> np.ndarray:
     """Render pass ``pass_index``: the per-pixel estimate of this pass alone.
 
@@ -158,6 +171,11 @@ def render_pass(
     pixels : (Q,) int, optional
         Flat pixel indices to estimate (others stay 0); all by default. A pixel's value does
         not depend on which other pixels are rendered.
+    record : PassRecord, optional
+        Filled with the pass's rays, paths, primitives and hits.
+    tally : callable, optional
+        Passed to :func:`photon_pass` (per-technique / per-K breakdowns). Values it sees are
+        per photon and per ray: divide by ``settings.photons`` and ``settings.spp``.
 
     Returns
     -------
@@ -175,7 +193,7 @@ def render_pass(
         per_ray = reference_pass(scene, rays, np.random.default_rng(photon_ss), blockers)
     else:
         per_ray = photon_pass(scene, estimator, rays, photon_ss, settings, pass_index,
-                              blockers, record) / settings.photons
+                              blockers, record, tally) / settings.photons
     img = np.zeros((cam.n_pixels, 3))
     _accumulate(img, rays.pixel, per_ray / settings.spp)
     return img.reshape(cam.height, cam.width, 3)
