@@ -1,107 +1,320 @@
-"""Throughput of each stage per estimator family; writes ``out/bench.json``.
+"""Throughput of each stage per estimator family, scaling tables, peak memory; ``out/bench.json``.
 
-Usage: ``python benchmarks/run.py [--scene scenes/area.toml] [--photons N] [--estimators a,b]``
-(``make bench``). Measures, on one core, one pass per estimator:
-photon vertices traced per second, primitives created per second, candidate ray-primitive
-pairs tested per second, hits evaluated per second, and the peak traced memory (tracemalloc
-of numpy allocations). Numbers depend on the machine; nothing here is a test.
+Usage: ``python benchmarks/run.py [--scene scenes/area.toml] [--photons N] [--estimators a,b]
+[--scaling a,b] [--memory-photons N] [--quick]`` (``make bench``). Nothing here is a test:
+numbers depend on the machine and on whatever else runs on it.
+
+What is measured (one process, one core; every rate names its own numerator and clock):
+
+* **stages of one pass** (the loop of :func:`psurf_core.render.photon_pass`, timed stage by
+  stage): photon vertices traced/s (``trace``), primitives created/s (``create``), candidate
+  ray-primitive pairs found/s (``binning``) and tested/s (``intersect``), hits evaluated/s
+  (``evaluate``), MIS weights/s (``mis``).
+* ``hits_per_second``: *evaluated hits* (pairs with a valid root whose contribution, shadow
+  tests included, was computed) divided by the whole time spent finding and evaluating them:
+  binning + intersect + evaluate + MIS weights.
+* ``pass_hits_per_second``: the same hits over the wall time of a real
+  :func:`psurf_core.render.render_pass` (tracing, creation and camera rays included; hits
+  counted through its ``tally`` hook).
+* ``two_process``: passes per second of :func:`psurf_core.parallel.render_parallel` with two
+  worker processes against one process, same passes (the images are checked bit-identical).
+* ``scaling``: each rate at 1x, 2x, 4x the photon count and at 1x, 2x, 4x the image side.
+* ``peak_memory_bytes``: peak resident set size (``ru_maxrss``) of a fresh subprocess that
+  renders one pass of ``planes`` with ``--memory-photons`` photons at 256x192.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import platform
+import subprocess
 import sys
+import textwrap
 import time
-import tracemalloc
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
 
 from psurf_core.binning import candidate_pairs  # noqa: E402
 from psurf_core.camera import camera_rays  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.geometry import blockers_of  # noqa: E402
-from psurf_core.render import RenderSettings, kernel_radius  # noqa: E402
+from psurf_core.mis import mis_weights  # noqa: E402
+from psurf_core.render import (  # noqa: E402
+    PHOTON_BATCH,
+    RenderSettings,
+    kernel_radius,
+    pass_generators,
+    render_pass,
+)
 from psurf_core.scene_io import load_scene  # noqa: E402
 from psurf_core.techniques.base import PassContext  # noqa: E402
 from psurf_core.trace import trace  # noqa: E402
 
+STAGES = ("trace", "create", "binning", "intersect", "evaluate", "mis")
 
-def bench_estimator(scene, spec, photons, seed=0):
-    """Time the stages of one pass of ``spec``; returns a dict of rates."""
+
+def with_resolution(scene, width: int, height: int):
+    """``scene`` with its camera at ``width x height`` pixels."""
+    return replace(scene, camera=replace(scene.camera, width=int(width), height=int(height)))
+
+
+def _timed_iter(it, acc: dict, key: str):
+    """Yield from ``it``, adding the time spent inside ``next`` to ``acc[key]``."""
+    while True:
+        a = time.perf_counter()
+        try:
+            item = next(it)
+        except StopIteration:
+            acc[key] += time.perf_counter() - a
+            return
+        acc[key] += time.perf_counter() - a
+        yield item
+
+
+def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
+    """Pass 0 of ``spec``, stage by stage (the loop of ``photon_pass``, with timers)."""
     est = parse_estimator(spec, scene)
     settings = RenderSettings(photons=photons)
     blockers = blockers_of(scene)
-    rng = np.random.default_rng(seed)
-    rays = camera_rays(scene, 1, rng, blockers=blockers)
-    t = {"create": 0.0, "intersect": 0.0, "evaluate": 0.0}
-    n = {"prims": 0, "pairs": 0, "hits": 0}
-    t0 = time.perf_counter()
-    paths = trace(scene, photons, rng, blockers=blockers)
-    t_trace = time.perf_counter() - t0
-    vertices = int(paths.alive.sum())
-    for tech in est.techniques:
-        ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, 0), 0,
-                          settings.max_pairs)
+    ray_rng, photon_ss = pass_generators(seed, 0)
+    rays = camera_rays(scene, settings.spp, ray_rng, blockers=blockers)
+    t = dict.fromkeys(STAGES, 0.0)
+    n = {"vertices": 0, "prims": 0, "pairs": 0, "hits": 0}
+    per_tech: dict[str, dict] = {}
+    n_batches = -(-photons // PHOTON_BATCH)
+    for b, ss in enumerate(photon_ss.spawn(n_batches)):
+        nb = min(PHOTON_BATCH, photons - b * PHOTON_BATCH)
         a = time.perf_counter()
-        prims = tech.create(paths, ctx)
-        t["create"] += time.perf_counter() - a
-        n["prims"] += len(prims)
-        for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi,
-                                         settings.max_pairs):
-            a = time.perf_counter()
-            hits = tech.intersect(prims, rays, ray, prim, ctx)
-            b = time.perf_counter()
-            if len(hits):
-                tech.evaluate(hits, prims, paths, rays, ctx)
-            t["intersect"] += b - a
-            t["evaluate"] += time.perf_counter() - b
-            n["pairs"] += ray.size
-            n["hits"] += len(hits)
+        paths = trace(scene, nb, np.random.default_rng(ss), blockers=blockers)
+        t["trace"] += time.perf_counter() - a
+        n["vertices"] += int(paths.alive.sum())
+        for group in est.groups:
+            for tech in group:
+                pt = per_tech.setdefault(tech.name, {"prims": 0, "pairs": 0, "hits": 0,
+                                                     **dict.fromkeys(STAGES[1:], 0.0)})
+                ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, 0), 0,
+                                  settings.max_pairs)
+                a = time.perf_counter()
+                prims = tech.create(paths, ctx)
+                pt["create"] += time.perf_counter() - a
+                pt["prims"] += len(prims)
+                pairs = candidate_pairs(scene.camera, rays, prims.lo, prims.hi,
+                                        settings.max_pairs, prims.hull,
+                                        (scene.medium.bounds_min, scene.medium.bounds_max))
+                for ray, prim in _timed_iter(pairs, pt, "binning"):
+                    pt["pairs"] += ray.size
+                    a = time.perf_counter()
+                    hits = tech.intersect(prims, rays, ray, prim, ctx)
+                    pt["intersect"] += time.perf_counter() - a
+                    if len(hits) == 0:
+                        continue
+                    pt["hits"] += len(hits)
+                    a = time.perf_counter()
+                    tech.evaluate(hits, prims, paths, rays, ctx)
+                    pt["evaluate"] += time.perf_counter() - a
+                    if len(group) > 1:
+                        a = time.perf_counter()
+                        mis_weights(tech, group, est.weighting, hits, prims, paths, rays, ctx)
+                        pt["mis"] += time.perf_counter() - a
+    for pt in per_tech.values():
+        for k in STAGES[1:]:
+            t[k] += pt[k]
+        for k in ("prims", "pairs", "hits"):
+            n[k] += pt[k]
+    find_eval = t["binning"] + t["intersect"] + t["evaluate"] + t["mis"]
     return {
-        "photon_vertices": vertices,
-        "photon_vertices_per_second": vertices / t_trace,
+        "photons": photons,
+        "pixels": scene.camera.n_pixels,
+        **n,
+        "seconds": t,
+        "photon_vertices_per_second": n["vertices"] / max(t["trace"], 1e-9),
         "primitives_per_second": n["prims"] / max(t["create"], 1e-9),
+        "pairs_found_per_second": n["pairs"] / max(t["binning"], 1e-9),
         "pairs_tested_per_second": n["pairs"] / max(t["intersect"], 1e-9),
-        "hits_evaluated_per_second": n["hits"] / max(t["evaluate"], 1e-9),
-        "hits": n["hits"],
-        "seconds": {"trace": t_trace, **t},
+        "hits_evaluated_per_second": n["hits"] / max(t["evaluate"] + t["mis"], 1e-9),
+        "hits_per_second": n["hits"] / max(find_eval, 1e-9),
+        "hit_fraction": n["hits"] / max(n["pairs"], 1),
+        "techniques": per_tech,
     }
+
+
+def whole_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
+    """Wall time of one real ``render_pass`` and the hits it evaluated (tally hook)."""
+    est = parse_estimator(spec, scene)
+    count = [0]
+
+    def tally(tech, hits, prims, rays, raw, val):
+        count[0] += len(hits)
+
+    a = time.perf_counter()
+    render_pass(scene, est, 0, seed, RenderSettings(photons=photons), tally=tally)
+    sec = time.perf_counter() - a
+    return {"seconds": sec, "hits": count[0], "pass_hits_per_second": count[0] / sec}
+
+
+def two_process(scene, spec: str, photons: int, passes: int) -> dict:
+    """Passes/s of 2 worker processes vs 1 process (same passes; images bit-identical)."""
+    from psurf_core.parallel import render_parallel
+
+    from psurf_core.render import render
+
+    est = parse_estimator(spec, scene)
+    settings = RenderSettings(photons=photons)
+    a = time.perf_counter()
+    one = render(scene, est, settings, passes=passes, seed=0)
+    t1 = time.perf_counter() - a
+    a = time.perf_counter()
+    two = render_parallel(scene, spec, settings, passes=passes, seed=0, jobs=2)
+    t2 = time.perf_counter() - a
+    return {"passes": passes, "seconds_1": t1, "seconds_2": t2, "speedup": t1 / t2,
+            "bit_identical": bool(np.array_equal(one.mean, two.mean)
+                                  and np.array_equal(one.var, two.var))}
+
+
+_RATES = ("photon_vertices_per_second", "primitives_per_second", "pairs_tested_per_second",
+          "hits_evaluated_per_second", "hits_per_second")
+
+
+def scaling(scene, spec: str, photons: int) -> dict:
+    """Rates at 1x/2x/4x photons (scene resolution) and 1x/2x/4x image side (``photons``)."""
+    cam = scene.camera
+    rows = {"photons": [], "resolution": []}
+    for f in (1, 2, 4):
+        r = stage_pass(scene, spec, photons * f)
+        rows["photons"].append({"factor": f, "photons": photons * f, "pixels": r["pixels"],
+                                "pairs": r["pairs"], "hits": r["hits"],
+                                **{k: r[k] for k in _RATES}})
+        s = with_resolution(scene, cam.width * f, cam.height * f)
+        r = stage_pass(s, spec, photons)
+        rows["resolution"].append({"factor": f, "photons": photons, "pixels": r["pixels"],
+                                   "pairs": r["pairs"], "hits": r["hits"],
+                                   **{k: r[k] for k in _RATES}})
+    return rows
+
+
+_MEMORY_SCRIPT = """
+import json, resource, sys, time
+from dataclasses import replace
+sys.path.insert(0, {root!r})
+from psurf_core.estimators import parse_estimator
+from psurf_core.render import RenderSettings, render_pass
+from psurf_core.scene_io import load_scene
+scene = load_scene({scene!r})
+scene = replace(scene, camera=replace(scene.camera, width=256, height=192))
+est = parse_estimator({spec!r}, scene)
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+count = [0]
+def tally(tech, hits, prims, rays, raw, val):
+    count[0] += len(hits)
+a = time.perf_counter()
+render_pass(scene, est, 0, 0, RenderSettings(photons={photons}), tally=tally)
+sec = time.perf_counter() - a
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+print(json.dumps(dict(peak=peak, before=before, seconds=sec, hits=count[0])))
+"""
+
+
+def peak_memory(scene_path: str, spec: str, photons: int) -> dict:
+    """Peak RSS of a fresh process rendering one pass of ``spec`` at 256x192."""
+    code = textwrap.dedent(_MEMORY_SCRIPT).format(root=str(ROOT), scene=scene_path, spec=spec,
+                                                  photons=photons)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    return {"estimator": spec, "photons": photons, "resolution": [256, 192],
+            "peak_rss_bytes": r["peak"], "rss_after_imports_bytes": r["before"],
+            "seconds": r["seconds"], "hits": r["hits"],
+            "pass_hits_per_second": r["hits"] / r["seconds"]}
+
+
+def _print_scaling(spec: str, rows: dict) -> None:
+    for axis in ("photons", "resolution"):
+        print(f"  {spec} vs {axis} (x1, x2, x4 {'photons' if axis == 'photons' else 'side'}):")
+        print("    factor  pixels   photons      pairs       hits  verts/s  prims/s  "
+              "pairs/s   eval/s   hits/s")
+        for r in rows[axis]:
+            print(f"    {r['factor']:>6} {r['pixels']:>7} {r['photons']:>9} {r['pairs']:>10} "
+                  f"{r['hits']:>10} " + " ".join(f"{r[k]:8.2e}" for k in _RATES))
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="scenes/area.toml")
     ap.add_argument("--photons", type=int, default=20_000)
-    ap.add_argument("--estimators", default="planes,plane-t1t2,points,bre,beams,beams-long")
+    ap.add_argument("--estimators",
+                    default="planes,plane-t1t2,plane-t1t3,cone,cylinder,points,bre,beams,"
+                            "paper-multi")
+    ap.add_argument("--scaling", default="planes,paper-multi",
+                    help="estimators for the doubling tables ('' for none)")
+    ap.add_argument("--scaling-photons", type=int, default=2000)
+    ap.add_argument("--memory-photons", type=int, default=1_000_000,
+                    help="photons of the peak-memory pass at 256x192 (0 skips it)")
+    ap.add_argument("--parallel-passes", type=int, default=4,
+                    help="passes of the 1-vs-2-process comparison (0 skips it)")
+    ap.add_argument("--quick", action="store_true",
+                    help="small sizes: 5000 photons, 200k memory photons, no scaling")
     ap.add_argument("--out", default="out/bench.json")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.photons, args.memory_photons, args.scaling = 5000, 200_000, ""
     scene = load_scene(args.scene)
+    cmd = "python benchmarks/run.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    print(f"# {cmd}\n# {args.scene}: {scene.camera.width}x{scene.camera.height}, "
+          f"{args.photons} photons, one pass, one process")
     results = {}
-    tracemalloc.start()
     for spec in args.estimators.split(","):
-        results[spec] = bench_estimator(scene, spec, args.photons)
-        r = results[spec]
-        print(f"{spec:>14}: {r['photon_vertices_per_second']:.3g} vertices/s, "
-              f"{r['pairs_tested_per_second']:.3g} pairs/s, "
-              f"{r['hits_evaluated_per_second']:.3g} hits evaluated/s ({r['hits']} hits)")
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
+        r = stage_pass(scene, spec, args.photons)
+        r.update(whole_pass(scene, spec, args.photons) | {"hits_stage": r["hits"]})
+        results[spec] = r
+        s = r["seconds"]
+        print(f"{spec:>12}: {r['hits_per_second']:9.3g} hits/s (find+eval), "
+              f"{r['pass_hits_per_second']:9.3g} hits/s (whole pass) | "
+              f"{r['pairs']:>9} pairs -> {r['hits_stage']:>9} hits "
+              f"({100 * r['hit_fraction']:.0f}%) | s: " + " ".join(
+                  f"{k} {s[k]:.2f}" for k in STAGES) + f" | pass {r['seconds']:.2f}")
+        for name, pt in r["techniques"].items():
+            if len(r["techniques"]) > 1:
+                print(f"{'':>14}{name:>16}: {pt['pairs']:>9} pairs {pt['hits']:>9} hits | "
+                      + " ".join(f"{k} {pt[k]:.2f}" for k in STAGES[1:]))
+    vert = stage_pass(scene, "planes", max(args.photons, 4 * PHOTON_BATCH))
+    print(f"trace: {vert['photon_vertices_per_second']:.3g} vertices/s "
+          f"({vert['vertices']} vertices)")
     out = {
+        "command": cmd,
+        "machine": {"cpus": __import__("os").cpu_count(), "python": platform.python_version(),
+                    "numpy": np.__version__},
         "scene": args.scene,
         "photons": args.photons,
-        "hits_per_second": {k: v["hits_evaluated_per_second"] for k, v in results.items()},
-        "photon_vertices_per_second": float(np.mean(
-            [v["photon_vertices_per_second"] for v in results.values()])),
-        "peak_memory_bytes": peak,
+        "hits_per_second": {k: v["hits_per_second"] for k, v in results.items()},
+        "pass_hits_per_second": {k: v["pass_hits_per_second"] for k, v in results.items()},
+        "photon_vertices_per_second": vert["photon_vertices_per_second"],
         "estimators": results,
     }
+    if args.parallel_passes:
+        out["two_process"] = two_process(scene, "planes", args.photons, args.parallel_passes)
+        tp = out["two_process"]
+        print(f"2 processes vs 1, planes, {tp['passes']} passes: {tp['speedup']:.2f}x "
+              f"(bit-identical: {tp['bit_identical']})")
+    out["scaling"] = {}
+    for spec in filter(None, args.scaling.split(",")):
+        out["scaling"][spec] = scaling(scene, spec, args.scaling_photons)
+        _print_scaling(spec, out["scaling"][spec])
+    if args.memory_photons:
+        m = peak_memory(args.scene, "planes", args.memory_photons)
+        out["memory"] = m
+        out["peak_memory_bytes"] = m["peak_rss_bytes"]
+        print(f"peak RSS {m['peak_rss_bytes'] / 2**20:.0f} MiB: one planes pass, "
+              f"{m['photons']} photons, 256x192 ({m['seconds']:.1f} s, "
+              f"{m['pass_hits_per_second']:.3g} hits/s)")
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=2))
-    print(f"peak traced memory {peak / 2**20:.1f} MiB; wrote {args.out}")
+    print(f"wrote {args.out}")
     return 0
 
 

@@ -61,7 +61,8 @@ def _pixel_ray_table(rays: Rays, n_pixels: int):
 
 
 def candidate_pairs(
-    cam: Camera, rays: Rays, lo: np.ndarray, hi: np.ndarray, max_pairs: int
+    cam: Camera, rays: Rays, lo: np.ndarray, hi: np.ndarray, max_pairs: int,
+    hull: np.ndarray | None = None, box: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Yield chunks ``(ray_idx, prim_idx)`` of candidate pairs, each at most ~``max_pairs``.
 
@@ -73,14 +74,17 @@ def candidate_pairs(
     lo, hi : (M, 3) float
         Primitive bounds.
     max_pairs : int
+    hull : (M, V, 3) float, optional
+        A convex planar polygon containing each primitive (:attr:`Primitives.hull`); rows with
+        a non-finite vertex fall back to the rectangle of ``[lo, hi]``. With ``box`` (the
+        medium's ``(bounds_min, bounds_max)``), candidates are the pixels the polygon clipped
+        to the box covers (per-row spans) instead of the whole rectangle.
+    box : (bounds_min, bounds_max), optional
     """
     if lo.shape[0] == 0 or len(rays) == 0:
         return
     order, start, counts = _pixel_ray_table(rays, cam.n_pixels)
     x0, x1, y0, y1 = screen_rects(cam, lo, hi)
-    w = np.maximum(x1 - x0, 0)
-    h = np.maximum(y1 - y0, 0)
-    area = w * h
     pix = np.flatnonzero(counts > 0)
     if pix.size <= 64:
         # A few pixels (one-pixel inspection): test each primitive's rectangle directly.
@@ -95,27 +99,195 @@ def candidate_pairs(
             if out is not None:
                 yield out
         return
-    spp = max(int(rays.spp), 1)
-    prim_ids = np.flatnonzero(area > 0)
-    if prim_ids.size == 0:
+    table = _ray_table(rays, counts, order, start)
+    spans = _spans(cam, x0, x1, y0, y1, hull, box, max_pairs)
+    if spans is None:
         return
-    # Chunk primitives so that pixel pairs x spp stays under max_pairs.
-    cum = np.cumsum(area[prim_ids] * spp)
-    bounds = [0]
-    while bounds[-1] < prim_ids.size:
-        base = cum[bounds[-1] - 1] if bounds[-1] > 0 else 0
-        nxt = int(np.searchsorted(cum, base + max_pairs, side="right"))
-        bounds.append(max(nxt, bounds[-1] + 1))
+    s_prim, s_row, s_c0, s_c1 = spans
+    n_pix = (s_c1 - s_c0).astype(np.int64)
+    spp = max(int(rays.spp), 1)
+    # Chunk spans so that pixel pairs x spp stays under max_pairs.
+    bounds = _chunk_bounds(n_pix * spp, max_pairs)
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        ids = prim_ids[a:b]
-        n_pix = area[ids]
-        prim = np.repeat(ids, n_pix)
-        k = np.arange(int(n_pix.sum())) - np.repeat(np.cumsum(n_pix) - n_pix, n_pix)
-        ww = w[prim]
-        pixel = (y0[prim] + k // ww) * cam.width + x0[prim] + k % ww
-        out = _expand_rays(prim, pixel, order, start, counts)
+        npx = n_pix[a:b]
+        prim = np.repeat(s_prim[a:b], npx)
+        k = np.arange(prim.size) - np.repeat(np.cumsum(npx) - npx, npx)
+        pixel = np.repeat(s_row[a:b] * cam.width + s_c0[a:b], npx) + k
+        out = _pairs_from_table(prim, pixel, table)
         if out is not None:
             yield out
+
+
+def _chunk_bounds(sizes: np.ndarray, budget: int) -> list[int]:
+    """Boundaries ``[0, ..., len(sizes)]`` of consecutive runs whose ``sizes`` sum to at most
+    ``budget`` (a single larger item makes a run of its own)."""
+    cum = np.cumsum(sizes)
+    bounds = [0]
+    while bounds[-1] < sizes.size:
+        base = cum[bounds[-1] - 1] if bounds[-1] > 0 else 0
+        nxt = int(np.searchsorted(cum, base + budget, side="right"))
+        bounds.append(max(nxt, bounds[-1] + 1))
+    return bounds
+
+
+def _ray_table(rays: Rays, counts: np.ndarray, order, start) -> np.ndarray:
+    """(n_pixels, C) ray indices of every pixel (``C`` = most rays in a pixel), -1 padded."""
+    c_max = int(counts.max()) if counts.size else 0
+    table = np.full((counts.size, max(c_max, 1)), -1, dtype=np.int64)
+    pix = np.repeat(np.arange(counts.size), counts)
+    j = np.arange(pix.size) - np.repeat(start, counts)
+    table[pix, j] = order
+    return table
+
+
+def _pairs_from_table(prim: np.ndarray, pixel: np.ndarray, table: np.ndarray):
+    """(ray, prim) pairs of every (primitive, pixel) pair over the pixel's rays, in pixel
+    order then ray order (the order :func:`_expand_rays` gives)."""
+    r = table[pixel]  # (P, C)
+    if r.shape[1] == 1:
+        keep = np.flatnonzero(r[:, 0] >= 0)
+        if keep.size == 0:
+            return None
+        return r[keep, 0], prim[keep]
+    ok = r >= 0
+    if not ok.any():
+        return None
+    return r[ok], np.broadcast_to(prim[:, None], r.shape)[ok]
+
+
+def _spans(cam: Camera, x0, x1, y0, y1, hull, box, max_pairs: int):
+    """Candidate pixel spans ``(prim, row, c0, c1)`` (columns ``c0 <= c < c1``) of every
+    primitive: its rectangle's rows, or the rows and spans of its clipped hull polygon."""
+    w = np.maximum(x1 - x0, 0)
+    h = np.maximum(y1 - y0, 0)
+    live = (w > 0) & (h > 0)
+    use_hull = np.zeros(live.shape, dtype=bool)
+    if hull is not None and box is not None:
+        use_hull = live & np.all(np.isfinite(hull), axis=(1, 2))
+    parts = []
+    rect = np.flatnonzero(live & ~use_hull)
+    if rect.size:
+        prim = np.repeat(rect, h[rect])
+        row = y0[prim] + np.arange(prim.size) - np.repeat(np.cumsum(h[rect]) - h[rect], h[rect])
+        parts.append((prim, row, x0[prim], x1[prim]))
+    poly = np.flatnonzero(use_hull)
+    if poly.size:
+        # Chunk primitives so that (primitive, row, edge) work stays under max_pairs.
+        v_max = hull.shape[1] + len(_CLIP_PLANES)
+        bounds = _chunk_bounds(h[poly] * v_max, max_pairs)
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            ids = poly[a:b]
+            parts.append(_polygon_spans(cam, hull[ids], ids, x0[ids], x1[ids], y0[ids],
+                                        y1[ids], box))
+    if not parts:
+        return None
+    prim, row, c0, c1 = (np.concatenate(p) for p in zip(*parts, strict=True))
+    ok = c1 > c0
+    # Primitive-major order (then row), as the rectangle binning yields its pairs.
+    order = np.lexsort((row[ok], prim[ok]))
+    return prim[ok][order], row[ok][order], c0[ok][order], c1[ok][order]
+
+
+#: Clip planes of the hull polygons: the medium box's six faces and the camera's near plane.
+_CLIP_PLANES = tuple(range(7))
+
+#: Pixels added on every side of a hull's projected spans: covers rounding in the projection
+#: (hits are exact float64 tests; a pixel too many only costs a failed test).
+_SPAN_MARGIN = 1e-3
+
+#: Points closer to the camera plane than this are clipped away (no hit can lie there:
+#: camera rays start at the camera).
+_NEAR = 1e-9
+
+
+def clip_polygons(poly: np.ndarray, count: np.ndarray, normal: np.ndarray, offset: np.ndarray):
+    """Sutherland-Hodgman clip of convex polygons to the half-spaces ``x . normal >= offset``.
+
+    Parameters
+    ----------
+    poly : (M, V, 3) float
+        Vertices; slots ``>= count`` are ignored.
+    count : (M,) int
+    normal : (3,) float
+    offset : float
+
+    Returns
+    -------
+    poly : (M, V + 1, 3) float
+    count : (M,) int
+    """
+    m, v, _ = poly.shape
+    j = np.arange(v)
+    valid = j[None] < count[:, None]
+    d = poly @ normal - offset
+    nxt = np.where(j[None] + 1 < count[:, None], j[None] + 1, 0)
+    d_n = np.take_along_axis(d, nxt, axis=1)
+    p_n = np.take_along_axis(poly, nxt[:, :, None], axis=1)
+    inside = valid & (d >= 0)
+    cross = valid & ((d >= 0) != (d_n >= 0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = np.where(cross, d / (d - d_n), 0.0)
+    ip = poly + f[:, :, None] * (p_n - poly)
+    emit = inside.astype(np.int64) + cross
+    off = np.cumsum(emit, axis=1) - emit
+    out = np.zeros((m, v + 1, 3))
+    rows = np.broadcast_to(np.arange(m)[:, None], (m, v))
+    out[rows[inside], off[inside]] = poly[inside]
+    slot = off + inside
+    out[rows[cross], slot[cross]] = ip[cross]
+    return out, emit.sum(axis=1)
+
+
+def _polygon_spans(cam: Camera, hull, ids, x0, x1, y0, y1, box):
+    """Per-row pixel spans of hull polygons clipped to the box and to the near plane."""
+    m = hull.shape[0]
+    poly, count = hull, np.full(m, hull.shape[1])
+    bmin, bmax = box
+    for axis in range(3):
+        e = np.zeros(3)
+        e[axis] = 1.0
+        poly, count = clip_polygons(poly, count, e, bmin[axis])
+        poly, count = clip_polygons(poly, count, -e, -bmax[axis])
+    poly, count = clip_polygons(poly, count, np.asarray(cam.forward, float),
+                                float(np.dot(cam.forward, cam.position)) + _NEAR)
+    v = poly.shape[1]
+    px, py, _ = project(cam, poly.reshape(-1, 3))
+    px, py = px.reshape(m, v), py.reshape(m, v)
+    j = np.arange(v)
+    valid = j[None] < count[:, None]
+    big = np.float64(1e30)
+    ymin = np.where(valid, py, big).min(axis=1)
+    ymax = np.where(valid, py, -big).max(axis=1)
+    r0 = np.maximum(np.floor(ymin - _SPAN_MARGIN), y0)
+    r1 = np.minimum(np.floor(ymax + _SPAN_MARGIN) + 1, y1)
+    r0 = np.where(count > 0, r0, 0).astype(np.int64)
+    nr = np.maximum(np.where(count > 0, r1, 0).astype(np.int64) - r0, 0)
+    k = np.repeat(np.arange(m), nr)
+    row = r0[k] + np.arange(k.size) - np.repeat(np.cumsum(nr) - nr, nr)
+    # Edge a -> b of each polygon, clipped to the row's strip [row - margin, row + 1 + margin].
+    nxt = np.where(j[None] + 1 < count[:, None], j[None] + 1, 0)
+    xa, ya = px[k], py[k]
+    xb = np.take_along_axis(px, nxt, axis=1)[k]
+    yb = np.take_along_axis(py, nxt, axis=1)[k]
+    lo_y = (row - _SPAN_MARGIN)[:, None]
+    hi_y = (row + 1 + _SPAN_MARGIN)[:, None]
+    dy = yb - ya
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / dy
+        ta = (lo_y - ya) * inv
+        tb = (hi_y - ya) * inv
+    flat = dy == 0
+    t_lo = np.where(flat, 0.0, np.maximum(np.minimum(ta, tb), 0.0))
+    t_hi = np.where(flat, 1.0, np.minimum(np.maximum(ta, tb), 1.0))
+    hit = valid[k] & (t_lo <= t_hi) & np.where(flat, (ya >= lo_y) & (ya <= hi_y), True)
+    xl = xa + t_lo * (xb - xa)
+    xh = xa + t_hi * (xb - xa)
+    xmin = np.where(hit, np.minimum(xl, xh), big).min(axis=1)
+    xmax = np.where(hit, np.maximum(xl, xh), -big).max(axis=1)
+    c0 = np.maximum(np.floor(xmin - _SPAN_MARGIN), x0[k])
+    c1 = np.minimum(np.floor(xmax + _SPAN_MARGIN) + 1, x1[k])
+    c1 = np.where(xmin <= xmax, c1, c0)
+    return ids[k], row, c0.astype(np.int64), c1.astype(np.int64)
 
 
 def _expand_rays(prim, pixel, order, start, counts):

@@ -121,6 +121,7 @@ def photon_pass(
     group.
     """
     out = np.zeros((len(rays), 3))
+    box = (scene.medium.bounds_min, scene.medium.bounds_max)
     n_batches = -(-settings.photons // PHOTON_BATCH)
     batch_ss = photon_ss.spawn(n_batches)
     for b in range(n_batches):
@@ -136,7 +137,7 @@ def photon_pass(
                 if record is not None:
                     record.prims[(tech.name, b)] = prims
                 for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi,
-                                                 settings.max_pairs):
+                                                 settings.max_pairs, prims.hull, box):
                     hits = tech.intersect(prims, rays, ray, prim, ctx)
                     if len(hits) == 0:
                         continue

@@ -31,6 +31,7 @@ from .base import (
     on_ray,
     ray_bounds,
     segments_clear,
+    wedge_hull,
 )
 from .surface_common import (
     NDP_MIN,
@@ -82,9 +83,11 @@ class GeneralizedPlane(Technique):
             lov, hiv = ray_bounds(origin, v, None)
             lo, hi = np.minimum(lo3, lov), np.maximum(hi3, hiv)
         lo, hi = clip_bounds(ctx.scene, lo, hi)
+        hull = (wedge_hull(ctx.scene, origin, u, v, Tu, Tv) if self.short
+                else wedge_hull(ctx.scene, origin, u, v))
         return Primitives(self.name, photon, K, lo, hi,
                           dict(origin=origin, x3=g["x3"], w3=u, v=v, w2=g["w2"], w1=g["w1"],
-                               Tu=Tu, Tv=Tv, T2=g["T2"]))
+                               Tu=Tu, Tv=Tv, T2=g["T2"]), hull=hull)
 
     # ------------------------------------------------------------------ Intersect
     def intersect(self, prims, rays, ray, prim, ctx) -> Hits:

@@ -28,6 +28,7 @@ from .base import (
     on_ray,
     ray_bounds,
     segments_clear,
+    wedge_hull,
 )
 
 
@@ -67,8 +68,10 @@ class PhotonPlane(Technique):
             lo1, hi1 = ray_bounds(x2, w1, None)
             lo, hi = np.minimum(lo2, lo1), np.maximum(hi2, hi1)
         lo, hi = clip_bounds(scene, lo, hi)
+        hull = (wedge_hull(scene, x2, w2, w1, T2, T1) if self.short
+                else wedge_hull(scene, x2, w2, w1))
         return Primitives(self.name, photon, K, lo, hi,
-                          dict(x2=x2, w2=w2, w1=w1, T2=T2, T1=T1))
+                          dict(x2=x2, w2=w2, w1=w1, T2=T2, T1=T1), hull=hull)
 
     # ------------------------------------------------------------------ Intersect
     def intersect(self, prims, rays, ray, prim, ctx) -> Hits:

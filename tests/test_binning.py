@@ -1,0 +1,101 @@
+"""Screen-space binning: the tight (hull polygon) footprints are conservative.
+
+Every hit that the rectangle binning (the primitive's box projected to the screen) finds must
+also be found when only the pixels of the primitive's clipped hull polygon are tested, for
+short and long planar primitives, with the camera outside and inside the medium box (the
+near-plane clip), and at 2 rays per pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from psurf_core.binning import candidate_pairs, clip_polygons
+from psurf_core.camera import camera_rays
+from psurf_core.geometry import blockers_of
+from psurf_core.scene_io import load_scene
+from psurf_core.techniques import get_technique
+from psurf_core.techniques.base import PassContext
+from psurf_core.trace import trace
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _hits(tech, prims, scene, rays, ctx, hull):
+    box = (scene.medium.bounds_min, scene.medium.bounds_max)
+    keys, pairs = [], 0
+    for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, 1 << 15, hull, box):
+        pairs += ray.size
+        h = tech.intersect(prims, rays, ray, prim, ctx)
+        keys.append(h.ray.astype(np.int64) * (1 << 32) + h.prim)
+    return np.sort(np.concatenate(keys)) if keys else np.zeros(0, np.int64), pairs
+
+
+@pytest.mark.parametrize("camera", ["outside", "inside"])
+@pytest.mark.parametrize("name", ["planes", "plane-t1t2", "plane-t1t3", "plane-t2t3-short"])
+def test_hull_binning_finds_every_rectangle_hit(name, camera):
+    scene = load_scene(ROOT / "scenes" / "area.toml")
+    cam = replace(scene.camera, width=40, height=30)
+    if camera == "inside":
+        cam = replace(cam, position=np.array([0.2, 0.1, -0.5]))
+    scene = replace(scene, camera=cam)
+    blockers = blockers_of(scene)
+    rng = np.random.default_rng(7)
+    rays = camera_rays(scene, 2, rng, blockers=blockers)
+    paths = trace(scene, 150, rng, blockers=blockers)
+    tech = get_technique(name)
+    ctx = PassContext(scene, blockers, 0.0, 0, 1 << 15)
+    prims = tech.create(paths, ctx)
+    assert prims.hull is not None
+    rect, rect_pairs = _hits(tech, prims, scene, rays, ctx, None)
+    tight, tight_pairs = _hits(tech, prims, scene, rays, ctx, prims.hull)
+    assert rect.size > 100
+    np.testing.assert_array_equal(tight, rect)
+    assert tight_pairs < rect_pairs
+
+
+def test_random_parallelograms_conservative():
+    """Random parallelograms anywhere around the box (partly outside it, crossing the
+    camera plane): the hull binning loses no hit of the rectangle binning."""
+    scene = load_scene(ROOT / "scenes" / "area.toml")
+    scene = replace(scene, camera=replace(scene.camera, width=32, height=24,
+                                          position=np.array([0.3, -0.2, -1.3])))
+    blockers = blockers_of(scene)
+    rng = np.random.default_rng(3)
+    rays = camera_rays(scene, 1, rng, blockers=blockers)
+    tech = get_technique("planes")
+    m = 400
+    w2 = rng.normal(size=(m, 3))
+    w1 = rng.normal(size=(m, 3))
+    w2 /= np.linalg.norm(w2, axis=1, keepdims=True)
+    w1 /= np.linalg.norm(w1, axis=1, keepdims=True)
+    x2 = rng.uniform(-1.5, 1.5, size=(m, 3))
+    T2, T1 = rng.exponential(1.0, m), rng.exponential(1.0, m)
+    from psurf_core.techniques.base import Primitives, clip_bounds, wedge_hull
+
+    c = [x2, x2 + T2[:, None] * w2, x2 + T1[:, None] * w1,
+         x2 + T2[:, None] * w2 + T1[:, None] * w1]
+    lo, hi = clip_bounds(scene, np.minimum.reduce(c), np.maximum.reduce(c))
+    prims = Primitives("planes", np.zeros(m, np.int64), np.full(m, 2), lo, hi,
+                       dict(x2=x2, w2=w2, w1=w1, T2=T2, T1=T1),
+                       hull=wedge_hull(scene, x2, w2, w1, T2, T1))
+    ctx = PassContext(scene, blockers, 0.0, 0, 1 << 15)
+    rect, _ = _hits(tech, prims, scene, rays, ctx, None)
+    tight, _ = _hits(tech, prims, scene, rays, ctx, prims.hull)
+    assert rect.size > 100
+    np.testing.assert_array_equal(tight, rect)
+
+
+def test_clip_polygons_square():
+    """The unit square clipped to ``x >= 0.25`` keeps 4 vertices spanning x in [0.25, 1]."""
+    sq = np.array([[[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]], dtype=float)
+    poly, n = clip_polygons(sq, np.array([4]), np.array([1.0, 0, 0]), 0.25)
+    assert n[0] == 4
+    v = poly[0, : n[0]]
+    assert v[:, 0].min() == pytest.approx(0.25) and v[:, 0].max() == 1.0
+    poly, n = clip_polygons(sq, np.array([4]), np.array([1.0, 0, 0]), 2.0)
+    assert n[0] == 0
