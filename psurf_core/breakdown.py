@@ -281,7 +281,8 @@ class BreakdownAccumulator:
         stack = self.weighted if weighted else self.unweighted
         return stack.mean.sum(axis=0)
 
-    def _t(self, technique) -> int:
+    def index(self, technique) -> int:
+        """Slot of ``technique`` (a name or an index) in the stacks (KeyError if absent)."""
         if isinstance(technique, str):
             try:
                 return self.layout.techniques.index(technique)
@@ -293,8 +294,8 @@ class BreakdownAccumulator:
     def unweighted_k(self, technique, k: int) -> np.ndarray:
         """(H, W, 3) mean unweighted image of ``technique`` (name or index) at scatter count
         ``k``'s bin: that technique alone, an estimate of the whole bin."""
-        return self.unweighted.mean[self._t(technique), self.layout.k_bin(k)]
+        return self.unweighted.mean[self.index(technique), self.layout.k_bin(k)]
 
     def weighted_k(self, technique, k: int) -> np.ndarray:
         """(H, W, 3) mean weighted image of ``technique`` at ``k``'s bin."""
-        return self.weighted.mean[self._t(technique), self.layout.k_bin(k)]
+        return self.weighted.mean[self.index(technique), self.layout.k_bin(k)]
