@@ -84,7 +84,13 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--photons", type=_positive, default=DEFAULT_PHOTONS, metavar="N",
                    help=f"photons per pass (default: {DEFAULT_PHOTONS})")
     p.add_argument("--hit", type=_nonneg, default=None, metavar="K",
-                   help="reconstruct: the hit numbered #K in the evaluate table (default 0)")
+                   help="reconstruct and --coverage: the hit numbered #K in the evaluate "
+                        "table (default 0)")
+    p.add_argument("--pass", dest="pass_index", type=_nonneg, default=0, metavar="N",
+                   help="the inspected pass, 0 <= N < --passes (default: 0)")
+    p.add_argument("--coverage", action="store_true",
+                   help="tint the pixels the selected hit's primitive contributes to "
+                        "(primitive -> pixels) on the render panel")
     p.set_defaults(func=run_screenshot)
     return p
 
@@ -122,6 +128,9 @@ def run_screenshot(args) -> int:
     if not (x < cam.width and y < cam.height):
         return _fail(f"--pixel {x},{y}: outside the {cam.width}x{cam.height} image "
                      f"(X in 0..{cam.width - 1}, Y in 0..{cam.height - 1})")
+    if args.pass_index >= args.passes:
+        return _fail(f"--pass {args.pass_index}: the image panels hold passes "
+                     f"0..{args.passes - 1} (--passes {args.passes})")
     try:
         import pyvista
 
@@ -130,7 +139,7 @@ def run_screenshot(args) -> int:
 
         screenshot(args.scene, args.stage, (x, y), args.estimator, args.seed, out,
                    size=tuple(args.size), passes=args.passes, hit=args.hit,
-                   photons=args.photons)
+                   photons=args.photons, pass_index=args.pass_index, coverage=args.coverage)
     except (SceneError, UnknownTechnique, ValueError) as e:
         return _fail(str(e))
     except (ImportError, RuntimeError) as e:

@@ -25,6 +25,10 @@ from .scene_view import (
     scale_of,
 )
 
+#: Cell arrays naming the primitive (row in its batch) and batch a drawn cell belongs to.
+PRIM_ROW, PRIM_BATCH = "prim_row", "prim_batch"
+#: Prefixes of the actor names primitives are drawn under (``<prefix>-<technique>``).
+PRIM_ACTORS = ("prims", "hitprims", "context", "coverage")
 #: Default number of photon subpaths drawn (``+``/``-`` in the window change it).
 DEFAULT_PATHS = 24
 #: At most this many primitives per technique in the Create view.
@@ -326,6 +330,11 @@ def primitive_mesh(tech, prims, idx, scene, radius: float):
         return _bounds_boxes(prims, idx), "bounds"
     if mesh.n_points == 0:
         return mesh, "surface"
+    # Which primitive each cell belongs to (right click picks it): every family but beams
+    # (whose tubes skip primitives outside the box) draws the same number of cells per
+    # primitive, in order.
+    if tech.family != "beams" and mesh.n_cells % idx.size == 0:
+        mesh.cell_data[PRIM_ROW] = np.repeat(idx, mesh.n_cells // idx.size)
     clipped = mesh.clip_box(medium_bounds(scene), invert=False)
     if not isinstance(clipped, pv.PolyData):
         clipped = clipped.extract_surface()
@@ -363,6 +372,8 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
                 continue
             mesh, how = primitive_mesh(tech, inspection.prims[(n2, b)], rows, inspection.scene,
                                        inspection.radii.get(tname, 0.0))
+            if PRIM_ROW in mesh.cell_data:
+                mesh.cell_data[PRIM_BATCH] = np.full(mesh.n_cells, b, dtype=np.int64)
             count += len(rows)
             if mesh.n_points:
                 meshes.append(mesh)
@@ -414,3 +425,74 @@ def add_legend(plotter: pv.Plotter, entries: list, loc: str = "lower right") -> 
         add_text(plotter, f" {label} ", 0.985, y0 - i * step, FONT_SMALL, align="right",
                  colour="black" if lum[label] > 0.45 else "white", background=col,
                  name=f"legend-{i}")
+
+
+# --------------------------------------------------------------------------- coverage
+COVERAGE_TINT = "#56B4E9"  # Okabe-Ito sky blue: visible on the grey render
+COVERAGE_EDGE = "#0072B2"  # Okabe-Ito blue
+
+
+def coverage_mesh(mask: np.ndarray):
+    """The covered pixels of an ``(H, W)`` bool mask (row 0 at the top) as panel cells
+    (pixel ``(X, Y)`` is the cell ``[X, X+1] x [H-Y-1, H-Y]``, as in ``ui.image_panels``), and
+    the outline of the covered region (the cell edges between a covered and an uncovered
+    pixel, or the image border).
+
+    Returns
+    -------
+    cells : pv.UnstructuredGrid (possibly empty)
+    outline : pv.PolyData (possibly empty), segments at ``z = 0.03``
+    """
+    m = np.asarray(mask, dtype=bool)
+    h, w = m.shape
+    if not m.any():
+        return pv.UnstructuredGrid(), pv.PolyData()
+    up = m[::-1]  # VTK rows go up: up[j, i] is the cell [i, i+1] x [j, j+1]
+    grid = pv.ImageData(dimensions=(w + 1, h + 1, 1), origin=(0.0, 0.0, 0.02))
+    cells = grid.extract_cells(np.flatnonzero(up.reshape(-1)))
+    pad = np.pad(up, 1)
+    j, i = np.nonzero(up)
+    segs = []
+    # (neighbour offset, edge start, edge end) for left, right, bottom, top edges
+    for (dj, di), (a, b) in (((0, -1), ((0, 0), (0, 1))), ((0, 1), ((1, 0), (1, 1))),
+                             ((-1, 0), ((0, 0), (1, 0))), ((1, 0), ((0, 1), (1, 1)))):
+        edge = ~pad[j + 1 + dj, i + 1 + di]
+        x, y = i[edge], j[edge]
+        segs.append(np.stack([np.column_stack([x + a[0], y + a[1]]),
+                              np.column_stack([x + b[0], y + b[1]])], axis=1))
+    segs = np.concatenate(segs).astype(float)  # (S, 2, 2)
+    n = segs.shape[0]
+    pts = np.concatenate([segs.reshape(-1, 2), np.full((2 * n, 1), 0.03)], axis=1)
+    lines = np.column_stack([np.full(n, 2), 2 * np.arange(n), 2 * np.arange(n) + 1]).ravel()
+    return cells, pv.PolyData(pts, lines=lines)
+
+
+def add_coverage(plotter: pv.Plotter, mask: np.ndarray) -> int:
+    """Tint the covered pixels on the current image panel and outline the region; returns
+    the number of covered pixels."""
+    cells, outline = coverage_mesh(mask)
+    if cells.n_cells:
+        plotter.add_mesh(cells, color=COVERAGE_TINT, opacity=0.55, lighting=False,
+                         name="coverage-cells", reset_camera=False)
+    if outline.n_points:
+        plotter.add_mesh(outline, color=COVERAGE_EDGE, line_width=px(2.5), lighting=False,
+                         name="coverage-outline", reset_camera=False)
+    return int(np.count_nonzero(mask))
+
+
+def picked_primitive(renderer, actor, cell_id: int):
+    """``(technique, batch, prim)`` of the primitive cell ``cell_id`` of ``actor`` (a mesh
+    :func:`add_primitives` drew in ``renderer``), or None for anything else."""
+    if actor is None or cell_id < 0:
+        return None
+    name = next((n for n, a in renderer.actors.items() if a is actor), None)
+    if name is None or name.endswith("-edges"):
+        return None
+    prefix, _, technique = name.partition("-")
+    if prefix not in PRIM_ACTORS or not technique:
+        return None
+    mesh = actor.GetMapper().GetInput()
+    data = pv.wrap(mesh).cell_data
+    if PRIM_ROW not in data or PRIM_BATCH not in data or cell_id >= mesh.GetNumberOfCells():
+        return None
+    return technique, int(data[PRIM_BATCH][cell_id]), int(data[PRIM_ROW][cell_id])

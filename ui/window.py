@@ -9,30 +9,36 @@ Layout (one pyvista Plotter, 2 x 3 grid)::
     |      title and caption    |   stage panel (numbers)   |
     +---------------------------+---------------------------+
 
-Keys: ``n``/``p`` next/previous stage, ``space`` play/pause progressive rendering (one pass per
-timer tick), ``r`` reset, ``s`` screenshot, ``h`` help; arrows move the picked pixel,
-``[``/``]`` choose the hit shown by Reconstruct, ``+``/``-`` change the number of subpaths.
+Keys (:data:`HELP`): ``n``/``p`` next/previous stage, ``space`` play/pause progressive
+rendering (one pass per timer tick), ``r`` reset, ``s`` screenshot, ``h`` help; arrows move the
+picked pixel, ``[``/``]`` choose the hit, ``+``/``-`` change the number of subpaths, ``,``/``.``
+the inspected pass, ``c`` coverage (the pixels the selected hit's primitive reaches), ``1``..
+``9`` MIS members on/off, ``x X``/``a A``/``g G``/``k K`` sigma_s, sigma_a, g, photons.
+Mouse: a click on the render or variance panel picks that pixel; a right click on a primitive
+in the 3D view shows its coverage; the buttons, member chips and sliders of
+:mod:`ui.controls` do the same as the keys.
 
-:func:`screenshot` composes exactly what the window shows at a stage, off-screen and
-deterministically (same seed, same passes, same picture).
+:func:`screenshot` composes exactly what the window shows at a stage (without the on-screen
+controls), off-screen and deterministically (same seed, same passes, same picture).
 """
 
 from __future__ import annotations
 
 import os
 import textwrap
-from dataclasses import dataclass, field
+import time
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pyvista as pv
 
 from psurf_core.accumulate import Welford
 from psurf_core.estimators import parse_estimator
-from psurf_core.inspect import inspect_pixel, reconstruct_hit
+from psurf_core.inspect import inspect_pixel, primitive_pixels, reconstruct_hit
 from psurf_core.render import RenderSettings, render, render_pass
 from psurf_core.scene_io import load_scene
 
-from . import hits_view, image_panels, primitives_view, scene_view
+from . import controls, hits_view, image_panels, primitives_view, scene_view
 from .scene_view import FONT, FONT_SMALL, FONT_TITLE, add_text
 from .stepper import STAGES, Stepper, stage_index
 
@@ -43,15 +49,23 @@ DEFAULT_PASSES = 4
 DEFAULT_SIZE = (1600, 900)
 
 HELP = """keys
-  n / p     next / previous stage
-  space     play / pause progressive rendering
-  r         reset (stage, passes, camera)
-  s         screenshot (PNG in the current folder)
-  h         this help
-  arrows    move the picked pixel
-  [ / ]     previous / next hit (Reconstruct)
-  + / -     more / fewer photon subpaths
-  q         quit"""
+  n / p    next / previous stage
+  space    play / pause rendering
+  r        reset (stage, passes, camera)
+  s        screenshot (PNG, current folder)
+  arrows   move the picked pixel
+  [ / ]    previous / next hit
+  , / .    previous / next inspected pass
+  c        coverage of the hit's primitive
+  1 .. 9   MIS member on / off
+  x X a A  sigma_s / sigma_a down / up
+  g G k K  HG g / photons down / up
+  + / -    more / fewer photon subpaths
+  h        this help      q  quit
+mouse
+  click render/variance: pick the pixel
+  right click a primitive: its coverage
+  buttons below, sliders under the render"""
 
 _GRID = dict(shape=(2, 3), col_weights=[4, 2, 2], row_weights=[9, 11],
              groups=[(np.s_[:], 0), (1, np.s_[1:])])
@@ -77,6 +91,19 @@ class ViewState:
     playing: bool = False
     message: str = ""
     initial_passes: int = DEFAULT_PASSES
+    #: The pass the stages inspect (one of the passes the image panels include).
+    pass_index: int = 0
+    #: Coverage (primitive -> pixels) shown on the render panel.
+    coverage: bool = False
+    #: ``(technique, batch, prim)`` picked in the 3D view; None: the selected hit's primitive.
+    coverage_pick: tuple | None = None
+    #: (H, W) bool pixels of the coverage primitive (row 0 at the top), or None.
+    coverage_mask: np.ndarray | None = None
+    #: Spec the estimator was opened with, and the members switched off since.
+    base_spec: str = ""
+    disabled: frozenset = frozenset()
+    #: The scene as loaded (the medium sliders change copies of it).
+    base_scene: object = None
 
     @property
     def stage(self) -> str:
@@ -85,8 +112,9 @@ class ViewState:
 
 def build_state(scene_path: str, estimator: str = "planes", seed: int = 0, pixel_xy=None,
                 photons: int = DEFAULT_PHOTONS, passes: int = DEFAULT_PASSES, stage="trace",
-                hit: int | None = None) -> ViewState:
-    """Load the scene, render ``passes`` passes and inspect the pixel in pass 0.
+                hit: int | None = None, pass_index: int = 0,
+                coverage: bool = False) -> ViewState:
+    """Load the scene, render ``passes`` passes and inspect the pixel in pass ``pass_index``.
 
     Raises ``SceneError`` / ``UnknownTechnique`` / ``ValueError`` for bad input.
     """
@@ -97,23 +125,67 @@ def build_state(scene_path: str, estimator: str = "planes", seed: int = 0, pixel
     cam = scene.camera
     if pixel_xy is None:
         pixel_xy = (cam.width // 2, cam.height // 2)
+    passes = max(int(passes), 1)
+    if not 0 <= int(pass_index) < passes:
+        raise ValueError(f"--pass {pass_index}: the image panels hold passes 0..{passes - 1} "
+                         f"(--passes {passes})")
     settings = RenderSettings(photons=int(photons), spp=1)
-    inspection = inspect_pixel(scene, est, seed, 0, pixel_xy, settings)
-    res = render(scene, est, settings, passes=max(int(passes), 1), seed=seed)
+    inspection = inspect_pixel(scene, est, seed, int(pass_index), pixel_xy, settings)
+    res = render(scene, est, settings, passes=passes, seed=seed)
     st = ViewState(scene_path=str(scene_path), scene=scene, estimator=est, seed=int(seed),
                    settings=settings, pixel_xy=tuple(int(v) for v in pixel_xy),
                    acc=res.accumulator, inspection=inspection,
-                   initial_passes=max(int(passes), 1))
+                   initial_passes=passes, pass_index=int(pass_index),
+                   base_spec=str(estimator), base_scene=scene)
     st.stepper.go(stage)
     if hit is not None:
         n = len(inspection.table)
         if n == 0 and int(hit) > 0:
-            raise ValueError(f"--hit {hit}: the pixel has no hit in pass 0")
+            raise ValueError(f"--hit {hit}: the pixel has no hit in pass {pass_index}")
         if n and not 0 <= int(hit) < n:
-            raise ValueError(f"--hit {hit}: the pixel has {n} hits in pass 0 "
+            raise ValueError(f"--hit {hit}: the pixel has {n} hits in pass {pass_index} "
                              f"(valid: 0..{n - 1})")
         st.hit = int(hit)
+    if coverage:
+        st.coverage = True
+        update_coverage(st)
     return st
+
+
+def coverage_target(state: ViewState):
+    """``(technique, batch, prim)`` whose coverage is shown: the primitive picked in the 3D
+    view, else the selected hit's; None when the pixel has no hit."""
+    if state.coverage_pick is not None:
+        return state.coverage_pick
+    t = state.inspection.table
+    if len(t) == 0:
+        return None
+    order = hits_view.hit_order(state.inspection)
+    r = int(order[min(max(state.hit, 0), len(order) - 1)])
+    return str(t.technique[r]), int(t.batch[r]), int(t.prim[r])
+
+
+def update_coverage(state: ViewState) -> None:
+    """Recompute :attr:`ViewState.coverage_mask` (primitive -> pixels) for the current
+    target and pass; None when coverage is off or there is no target."""
+    target = coverage_target(state) if state.coverage else None
+    if target is None:
+        state.coverage_mask = None
+        return
+    name, batch, prim = target
+    state.coverage_mask = primitive_pixels(state.scene, state.estimator, state.seed,
+                                           state.pass_index, name, prim, state.settings,
+                                           batch=batch)
+
+
+def reinspect(state: ViewState) -> None:
+    """Inspect the picked pixel again in :attr:`ViewState.pass_index` (after the pixel, the
+    pass, the scene or the estimator changed); the hit selection and a 3D pick are reset."""
+    state.inspection = inspect_pixel(state.scene, state.estimator, state.seed,
+                                     state.pass_index, state.pixel_xy, state.settings)
+    state.hit = 0
+    state.coverage_pick = None
+    update_coverage(state)
 
 
 # --------------------------------------------------------------------------- composing
@@ -186,7 +258,20 @@ def panel_text(state: ViewState) -> str:
         recon, k = _recon(state)
         body = ("no hit in this pass: move the pixel (arrows)" if recon is None
                 else hits_view.reconstruct_text(ins, recon, k) + "\n[ / ] other hits")
-    return head + "\n" + body
+    return head + "\n" + body + coverage_text(state)
+
+
+def coverage_text(state: ViewState) -> str:
+    """The panel's coverage line (empty when coverage is off)."""
+    if not state.coverage:
+        return ""
+    target = coverage_target(state)
+    if target is None or state.coverage_mask is None:
+        return "\ncoverage: no hit selected (move the pixel)"
+    name, batch, prim = target
+    src = "picked in 3D" if state.coverage_pick is not None else f"hit #{state.hit}"
+    return (f"\ncoverage ({src}): {name} primitive {prim}, batch {batch}\n"
+            f"  reaches {int(state.coverage_mask.sum())} pixels in pass {state.pass_index}")
 
 
 def _compose_3d(plotter: pv.Plotter, state: ViewState) -> None:
@@ -221,6 +306,12 @@ def _compose_3d(plotter: pv.Plotter, state: ViewState) -> None:
         if recon is not None:
             hits_view.add_hit_primitives(plotter, ins, [recon["row"]], opacity=0.6)
             hits_view.add_reconstruction(plotter, ins, recon)
+    target = coverage_target(state) if state.coverage else None
+    if target is not None:
+        name, batch, prim = target
+        primitives_view.add_primitives(plotter, ins, {(name, batch): np.array([prim])},
+                                       opacity=0.3, name="coverage", legend=False, width=6.0,
+                                       list_empty=False)
     # Title and caption, top left; the help overlay on top of everything.
     add_text(plotter, state.stepper.title, 0.015, 0.985, FONT_TITLE, bold=True, name="title")
     add_text(plotter, _wrap(state.stepper.caption, 78), 0.015, 0.935, FONT_SMALL,
@@ -253,8 +344,8 @@ def _compose_panel(plotter: pv.Plotter, state: ViewState) -> None:
     plotter.renderer.clear_actors()
     plotter.renderer.set_background("#f2f2f2")
     add_text(plotter, panel_text(state), 0.02, 0.97, FONT_SMALL, mono=True, name="panel")
-    if state.message:
-        add_text(plotter, state.message, 0.02, 0.08, FONT_SMALL, name="message",
+    if state.message:  # just above the window's button strip (ui.controls)
+        add_text(plotter, state.message, 0.02, 0.115, FONT_SMALL, name="message",
                  colour=scene_view.OKABE_ITO["vermillion"])
 
 
@@ -267,8 +358,12 @@ def _compose_images(plotter: pv.Plotter, state: ViewState) -> None:
     plotter.subplot(*_RENDER)
     plotter.renderer.clear_actors()
     plotter.renderer.set_background("white")
-    image_panels.add_render_panel(plotter, state.acc.mean, state.pixel_xy,
-                                  f"render, {state.acc.n} passes")
+    title = f"render, {state.acc.n} passes"
+    if state.coverage and state.coverage_mask is not None:
+        title += f"; coverage {int(state.coverage_mask.sum())} px"
+    image_panels.add_render_panel(plotter, state.acc.mean, state.pixel_xy, title)
+    if state.coverage and state.coverage_mask is not None:
+        primitives_view.add_coverage(plotter, state.coverage_mask)
     plotter.subplot(*_VARIANCE)
     plotter.renderer.clear_actors()
     if image_panels.VARIANCE_BAR in plotter.scalar_bars:
@@ -291,7 +386,8 @@ def make_plotter(size=DEFAULT_SIZE, off_screen: bool = False) -> pv.Plotter:
 def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes", seed: int = 0,
                out: str = "shot.png", size=DEFAULT_SIZE, passes: int = DEFAULT_PASSES,
                hit: int | None = None, photons: int = DEFAULT_PHOTONS,
-               n_paths: int = primitives_view.DEFAULT_PATHS) -> np.ndarray:
+               n_paths: int = primitives_view.DEFAULT_PATHS, pass_index: int = 0,
+               coverage: bool = False) -> np.ndarray:
     """Render what the window shows at ``stage`` off-screen and write it to ``out`` (PNG).
 
     Parameters
@@ -300,10 +396,15 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
     pixel_xy : (int, int)
         Picked pixel ``(X, Y)``: column from the left, row from the top.
     passes : int
-        Passes of the progressive render shown in the image panels (the inspected pass is 0).
+        Passes of the progressive render shown in the image panels.
     hit : int, optional
-        Reconstruct: which hit, as numbered ``#i`` in the evaluate table (largest
-        contribution first); default 0.
+        Which hit Reconstruct (and coverage) use, as numbered ``#i`` in the evaluate table
+        (largest contribution first); default 0.
+    pass_index : int
+        The inspected pass, ``0 <= pass_index < passes`` (the window's ``,`` / ``.``).
+    coverage : bool
+        Tint the pixels the selected hit's primitive contributes to on the render panel
+        (the window's ``c``).
 
     Returns
     -------
@@ -311,7 +412,8 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
         The image written.
     """
     stage_index(stage)
-    state = build_state(scene_path, estimator, seed, pixel_xy, photons, passes, stage, hit)
+    state = build_state(scene_path, estimator, seed, pixel_xy, photons, passes, stage, hit,
+                        pass_index=pass_index, coverage=coverage)
     state.n_paths = int(n_paths)
     plotter = make_plotter(size, off_screen=True)
     try:
@@ -327,32 +429,74 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
     return img
 
 
+#: Environment variable with a script for the window (tests under Xvfb): steps separated by
+#: ``;``, one per timer tick: a key sym (``n``, ``space``, ``Right``), ``click:render:X,Y`` /
+#: ``click:variance:X,Y`` (a real mouse click on that image pixel's centre), ``shot:PATH.png``,
+#: ``wait`` or ``quit``.
+SCRIPT_ENV = "PSURF_WINDOW_SCRIPT"
+
+
 def run(scene_path: str, estimator: str = "planes", *, seed: int = 0, pixel_xy=None,
         photons: int = DEFAULT_PHOTONS, passes: int = DEFAULT_PASSES,
         size=DEFAULT_SIZE) -> None:
-    """Open the interactive window on ``scene_path`` (blocks until it is closed)."""
+    """Open the interactive window on ``scene_path`` (blocks until it is closed).
+
+    With :data:`SCRIPT_ENV` set, its steps are played through the window's own event path
+    (synthetic key presses and mouse clicks), one per timer tick, and ``quit`` closes it.
+    """
     state = build_state(scene_path, estimator, seed, pixel_xy, photons, passes)
     plotter = make_plotter(size)
     compose(plotter, state)
-    App(plotter, state).bind()
+    app = App(plotter, state)
+    app.bind()
+    script = os.environ.get(SCRIPT_ENV)
+    if script:
+        app.script = [step.strip() for step in script.split(";") if step.strip()]
     plotter.show(title="psurf - photon surfaces, step by step")
 
 
 class App:
-    """Key and timer bindings of the interactive window."""
+    """Key, mouse, widget and timer bindings of the interactive window.
 
-    def __init__(self, plotter: pv.Plotter, state: ViewState):
+    Every action is a method, so tests drive them on an off-screen plotter; :meth:`click`
+    takes a display position as VTK reports it (pixels, ``y`` from the bottom).
+    """
+
+    #: Timer period (ms): progressive passes, debounced parameter changes, scripted steps.
+    TICK_MS = 200
+
+    def __init__(self, plotter: pv.Plotter, state: ViewState, *, with_controls: bool = True):
         self.p = plotter
         self.s = state
-        self.blockers = None
+        if not state.base_spec:
+            state.base_spec = state.estimator.spec
+        if state.base_scene is None:
+            state.base_scene = state.scene
+        self.params = controls.MediumParams.of(state.scene, state.settings.photons)
+        self.pending = controls.Debouncer()
+        self.clock = time.monotonic
+        self.with_controls = with_controls
+        self.controls = None
+        self.script: list = []
+        self._tags: dict = {}
 
+    @property
+    def members(self) -> tuple:
+        from psurf_core.estimators import parse_estimator
+
+        return controls.members(parse_estimator(self.s.base_spec, self.s.scene))
+
+    # ---------------------------------------------------------------- binding
     def bind(self) -> None:
         p = self.p
-        if p.iren is None:  # off-screen: nothing to bind (methods can still be called)
+        if self.with_controls:
+            self.controls = controls.Controls(p, self._actions(), on_slider=self.slide)
+            self.controls.draw(self.s, self.members, self.s.disabled)
+        if p.iren is None:  # no interactor: nothing to bind (methods can still be called)
             return
         # VTK's own character shortcuts (w, s, r, p, e, ...) would fight ours.
         p.iren.interactor.RemoveObservers("CharEvent")
-        for key in ("Up", "Down", "plus", "minus"):
+        for key in ("Up", "Down", "plus", "minus", "b", "v", "C"):
             p.clear_events_for_key(key, raise_on_missing=False)
         keys = {
             "n": self.next, "p": self.previous, "space": self.toggle_play, "r": self.reset,
@@ -361,11 +505,41 @@ class App:
             "Down": lambda: self.move(0, 1), "bracketleft": lambda: self.step_hit(-1),
             "bracketright": lambda: self.step_hit(1), "plus": lambda: self.paths(2.0),
             "equal": lambda: self.paths(2.0), "minus": lambda: self.paths(0.5),
+            "comma": lambda: self.step_pass(-1), "period": lambda: self.step_pass(1),
+            "c": self.toggle_coverage, "q": self.quit,
+            "x": lambda: self.nudge("sigma_s", -1), "X": lambda: self.nudge("sigma_s", 1),
+            "a": lambda: self.nudge("sigma_a", -1), "A": lambda: self.nudge("sigma_a", 1),
+            "g": lambda: self.nudge("g", -1), "G": lambda: self.nudge("g", 1),
+            "k": lambda: self.nudge("photons", -1), "K": lambda: self.nudge("photons", 1),
         }
+        for i in range(9):
+            keys[str(i + 1)] = lambda i=i: self.toggle_member_index(i)
         for k, fn in keys.items():
             p.add_key_event(k, fn)
-        p.add_timer_event(max_steps=10**9, duration=200, callback=self.tick)
+        if self.controls is not None:
+            self.controls.add_sliders(self.params)
+        ii = p.iren.interactor
+        # Above the camera style (priority 0) and the widgets, so a click on a button or an
+        # image panel does not also rotate or pan; elsewhere the event goes on unchanged.
+        self._tags["left"] = ii.AddObserver("LeftButtonPressEvent", self._on_left, 10.0)
+        self._tags["right"] = ii.AddObserver("RightButtonPressEvent", self._on_right, 10.0)
+        p.add_timer_event(max_steps=10**9, duration=self.TICK_MS, callback=self.tick)
 
+    def _actions(self) -> dict:
+        return {"previous": self.previous, "next": self.next, "play": self.toggle_play,
+                "reset": self.reset, "coverage": self.toggle_coverage,
+                "pass-": lambda: self.step_pass(-1), "pass+": lambda: self.step_pass(1),
+                "save": self.save, "help": self.toggle_help, "member": self.toggle_member}
+
+    def _on_left(self, obj, _event) -> None:
+        if self.click(obj.GetEventPosition()) in ("button", "pixel"):
+            obj.GetCommand(self._tags["left"]).SetAbortFlag(1)
+
+    def _on_right(self, obj, _event) -> None:
+        if self.pick_primitive(obj.GetEventPosition()) is not None:
+            obj.GetCommand(self._tags["right"]).SetAbortFlag(1)
+
+    # ---------------------------------------------------------------- drawing
     def redraw(self, keep_camera: bool = True) -> None:
         # Once a window is shown pyvista renders after every added actor; composing a stage
         # adds dozens, so rendering is held until the whole frame is built (as in lecture mode).
@@ -373,10 +547,70 @@ class App:
         self.p.suppress_rendering = True
         try:
             compose(self.p, self.s, keep_camera=keep_camera)
+            if self.controls is not None:
+                self.controls.draw(self.s, self.members, self.s.disabled)
         finally:
             self.p.suppress_rendering = held
         self.p.render()
 
+    # ---------------------------------------------------------------- mouse
+    def _panel_index(self, name: str) -> int:
+        return self.p.renderers.loc_to_index({"render": _RENDER, "variance": _VARIANCE}[name])
+
+    def click(self, display_xy) -> str | None:
+        """A left click at a display position: ``"button"`` (a button or member chip ran),
+        ``"pixel"`` (the render or variance panel picked a pixel), ``"panel"`` (an image
+        panel outside the image: nothing changes) or None (left to the camera style)."""
+        if self.controls is not None and self.controls.click(display_xy):
+            return "button"
+        vps = [r.GetViewport() for r in self.p.renderers]
+        i = controls.viewport_at(display_xy, self.p.window_size, vps)
+        if i not in (self._panel_index("render"), self._panel_index("variance")):
+            return None
+        cam = self.s.scene.camera
+        xy = controls.pick_pixel(self.p.renderers[i], display_xy, self.p.window_size,
+                                 cam.width, cam.height)
+        if xy is None:
+            return "panel"
+        self.set_pixel(xy)
+        return "pixel"
+
+    def pixel_display(self, panel: str, pixel_xy) -> tuple:
+        """Display position of the centre of image pixel ``pixel_xy`` on ``panel``
+        (``"render"`` or ``"variance"``): where a click picks it."""
+        ren = self.p.renderers[self._panel_index(panel)]
+        cam = ren.GetActiveCamera()
+        h = self.s.scene.camera.height
+        fx, fy, _ = cam.GetFocalPoint()
+        return controls.panel_to_display((pixel_xy[0] + 0.5, h - pixel_xy[1] - 0.5),
+                                         self.p.window_size, ren.GetViewport(), (fx, fy),
+                                         cam.GetParallelScale())
+
+    def pick_primitive(self, display_xy):
+        """A right click in the 3D view: the primitive drawn under it becomes the coverage
+        target (``(technique, batch, prim)``), or None when there is none."""
+        from vtkmodules.vtkRenderingCore import vtkCellPicker
+
+        vps = [r.GetViewport() for r in self.p.renderers]
+        i = controls.viewport_at(display_xy, self.p.window_size, vps)
+        if i != self.p.renderers.loc_to_index(_VIEW3D):
+            return None
+        ren = self.p.renderers[i]
+        picker = vtkCellPicker()
+        picker.SetTolerance(0.002)
+        if not picker.Pick(display_xy[0], display_xy[1], 0.0, ren):
+            return None
+        target = primitives_view.picked_primitive(ren, picker.GetActor(), picker.GetCellId())
+        if target is None:
+            return None
+        s = self.s
+        s.coverage, s.coverage_pick = True, target
+        update_coverage(s)
+        s.message = f"coverage of {target[0]} primitive {target[2]}"
+        self.redraw()
+        return target
+
+    # ---------------------------------------------------------------- actions
     def next(self) -> None:
         self.s.stepper.next()
         self.redraw()
@@ -394,15 +628,23 @@ class App:
         self.s.message = "playing: one pass per tick" if self.s.playing else "paused"
         self.redraw()
 
+    def restart(self, message: str) -> None:
+        """Render the initial passes again (scene, estimator or photons changed) and inspect
+        the pixel anew."""
+        s = self.s
+        s.acc = render(s.scene, s.estimator, s.settings, passes=s.initial_passes,
+                       seed=s.seed).accumulator
+        s.pass_index = min(s.pass_index, s.acc.n - 1)
+        reinspect(s)
+        s.message = message
+
     def reset(self) -> None:
         s = self.s
         s.stepper.reset()
         s.playing = False
-        s.hit = 0
         s.n_paths = primitives_view.DEFAULT_PATHS
-        s.acc = render(s.scene, s.estimator, s.settings, passes=s.initial_passes,
-                       seed=s.seed).accumulator
-        s.message = "reset"
+        s.pass_index = 0
+        self.restart("reset")
         self.redraw(keep_camera=False)
 
     def save(self) -> None:
@@ -412,28 +654,127 @@ class App:
         s.message = f"saved {os.path.abspath(out)}"
         self.redraw()
 
-    def move(self, dx: int, dy: int) -> None:
+    def quit(self) -> None:
+        if self.p.iren is not None:
+            self.p.iren.interactor.TerminateApp()
+
+    def set_pixel(self, pixel_xy) -> None:
         s = self.s
-        cam = s.scene.camera
-        x = min(max(s.pixel_xy[0] + dx, 0), cam.width - 1)
-        y = min(max(s.pixel_xy[1] + dy, 0), cam.height - 1)
-        s.pixel_xy = (x, y)
-        s.inspection = inspect_pixel(s.scene, s.estimator, s.seed, 0, s.pixel_xy, s.settings)
-        s.hit = 0
-        s.message = ""
+        s.pixel_xy = (int(pixel_xy[0]), int(pixel_xy[1]))
+        reinspect(s)
+        s.message = f"picked pixel ({s.pixel_xy[0]}, {s.pixel_xy[1]})"
         self.redraw()
 
+    def move(self, dx: int, dy: int) -> None:
+        cam = self.s.scene.camera
+        x = min(max(self.s.pixel_xy[0] + dx, 0), cam.width - 1)
+        y = min(max(self.s.pixel_xy[1] + dy, 0), cam.height - 1)
+        self.set_pixel((x, y))
+        self.s.message = ""
+
     def step_hit(self, d: int) -> None:
-        n = len(self.s.inspection.table)
+        s = self.s
+        n = len(s.inspection.table)
         if n:
-            self.s.hit = (self.s.hit + d) % n
+            s.hit = (s.hit + d) % n
+        s.coverage_pick = None
+        update_coverage(s)
+        self.redraw()
+
+    def step_pass(self, d: int) -> None:
+        """Inspect the previous / next pass (of those the image panels include)."""
+        s = self.s
+        k = min(max(s.pass_index + d, 0), s.acc.n - 1)
+        if k != s.pass_index:
+            s.pass_index = k
+            reinspect(s)
+        s.message = f"inspecting pass {s.pass_index} of {s.acc.n}"
+        self.redraw()
+
+    def toggle_coverage(self) -> None:
+        s = self.s
+        s.coverage = not s.coverage
+        s.coverage_pick = None
+        update_coverage(s)
+        s.message = "coverage: the selected hit's primitive" if s.coverage else ""
         self.redraw()
 
     def paths(self, factor: float) -> None:
         self.s.n_paths = int(min(max(round(self.s.n_paths * factor), 1), 512))
         self.redraw()
 
+    def toggle_member_index(self, i: int) -> None:
+        names = self.members
+        if len(names) > 1 and i < len(names):
+            self.toggle_member(names[i])
+
+    def toggle_member(self, name: str) -> None:
+        """Switch an estimator member (MIS technique) on or off; one always stays on."""
+        s = self.s
+        disabled = set(s.disabled) ^ {name}
+        try:
+            est = controls.estimator_with(s.base_spec, s.scene, disabled)
+        except ValueError as e:
+            s.message = str(e)
+            self.redraw()
+            return
+        s.estimator, s.disabled = est, frozenset(disabled)
+        self.restart(f"estimator {est.spec}")
+        self.redraw()
+
+    # ---------------------------------------------------------------- medium and photons
+    def nudge(self, key: str, direction: int) -> None:
+        """A key step of a parameter (x2 photons, x1.25 sigmas, +-0.1 g); applied debounced."""
+        p = self.params
+        if key == "photons":
+            p = replace(p, photons=int(p.photons * (2.0 if direction > 0 else 0.5)))
+        elif key == "g":
+            p = replace(p, g=round(p.g + 0.1 * direction, 2))
+        else:
+            v = getattr(p, key)
+            v = max(v, 0.04) * 1.25 if direction > 0 else v / 1.25
+            p = replace(p, **{key: round(v, 3)})
+        self.set_params(p.clamped())
+
+    def slide(self, key: str, value: float) -> None:
+        """A slider moved (``photons`` comes as log2)."""
+        v = 2.0 ** value if key == "photons" else value
+        self.set_params(replace(self.params, **{key: v}).clamped(), from_slider=True)
+
+    def set_params(self, params, *, from_slider: bool = False) -> None:
+        self.params = params
+        self.pending.push(params, self.clock())
+        if self.controls is not None and not from_slider:
+            for k in ("sigma_s", "sigma_a", "g"):
+                self.controls.set_slider(k, getattr(params, k))
+            self.controls.set_slider("photons", np.log2(params.photons))
+        self.s.message = (f"sigma_s {params.sigma_s:.3g}  sigma_a {params.sigma_a:.3g}  "
+                          f"g {params.g:.2f}  photons {params.photons}  (applying...)")
+        _compose_panel(self.p, self.s)
+        self.p.render()
+
+    def apply_params(self, params) -> None:
+        """Build the new scene and settings and restart rendering and inspection."""
+        s = self.s
+        s.scene = controls.scene_with(s.base_scene, params)
+        s.settings = replace(s.settings, photons=int(params.photons))
+        self.restart(f"sigma_s {params.sigma_s:.3g}  sigma_a {params.sigma_a:.3g}  "
+                     f"g {params.g:.2f}  photons {params.photons}: restarted")
+        self.redraw()
+
+    def flush(self) -> None:
+        """Apply a pending parameter change now (tests; the timer waits for quiet)."""
+        if self.pending.pending:
+            self.apply_params(self.pending.due(float("inf")))
+
+    # ---------------------------------------------------------------- timer
     def tick(self, _step=None) -> None:
+        if self.script:
+            self._script_step(self.script.pop(0))
+        params = self.pending.due(self.clock())
+        if params is not None:
+            self.apply_params(params)
+            return
         s = self.s
         if not s.playing:
             return
@@ -442,3 +783,34 @@ class App:
         _compose_images(self.p, s)  # the 3D view (and its camera) stays as it is
         _compose_panel(self.p, s)
         self.p.render()
+
+    def _script_step(self, step: str) -> None:
+        """One step of :data:`SCRIPT_ENV`, sent through the interactor like a user's."""
+        ii = self.p.iren.interactor
+        if step == "wait":
+            return
+        if step == "quit":
+            print("window: quit", flush=True)
+            self.quit()
+            return
+        if step.startswith("shot:"):
+            self.p.screenshot(step[5:])
+            print(f"window: wrote {step[5:]}", flush=True)
+            return
+        if step.startswith("click:"):
+            _, panel, xy = step.split(":")
+            x, y = (int(v) for v in xy.split(","))
+            dx, dy = (int(round(v)) for v in self.pixel_display(panel, (x, y)))
+            ii.SetEventPosition(dx, dy)
+            ii.MouseMoveEvent()
+            ii.LeftButtonPressEvent()
+            ii.LeftButtonReleaseEvent()
+            print(f"window: clicked {panel} at display ({dx}, {dy}): pixel "
+                  f"{self.s.pixel_xy}", flush=True)
+            return
+        ii.SetKeySym(step)
+        ii.SetKeyCode(step if len(step) == 1 else "\0")
+        ii.KeyPressEvent()
+        ii.KeyReleaseEvent()
+        print(f"window: key {step}: stage {self.s.stage}, pixel {self.s.pixel_xy}, "
+              f"pass {self.s.pass_index}, passes {self.s.acc.n}", flush=True)
