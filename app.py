@@ -82,13 +82,18 @@ def build_parser() -> Parser:
               compare SCENE.toml --estimators A,B --time S       equal-time variance study
               lecture [--state N] [--screenshot OUT.png]         the tutorials' key states,
                                                                  full-screen (-> / <-)
+              record SCENE.toml --estimators A,B --passes N      GIF/MP4 of the converging
+                     --out conv.gif [--mode render|techniques|bounces]   image panels
+              breakdown SCENE.toml --estimator SPEC --out DIR    per-technique, weight and
+                                                                 per-K PNGs of an MIS set
 
             Run 'python app.py render --help' for the render options."""),
         epilog=f"estimators (--estimator NAME):\n{estimators}",
     )
     top.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="{render,demo,screenshot,compare,lecture}",
-                             parser_class=Parser)
+    sub = top.add_subparsers(
+        dest="command", parser_class=Parser,
+        metavar="{render,demo,screenshot,compare,lecture,record,breakdown}")
 
     render_parser = add_render_parser(sub, estimators)
 
@@ -129,6 +134,10 @@ def build_parser() -> Parser:
     from ui.lecture import add_lecture_parser  # lecture mode: the tutorials' key states
 
     add_lecture_parser(sub)
+
+    from ui.record_cli import add_record_parsers  # record (GIF/MP4), breakdown (MIS PNGs)
+
+    add_record_parsers(sub)
     return top
 
 

@@ -521,9 +521,12 @@ class FigureMaker:
 
     def frame(self, source, mode: str = "render", pixel_xy=None, **kw) -> np.ndarray:
         """(H, W, 3) uint8 picture of ``mode`` for ``source``."""
-        scene_view.set_scale(self.size[1])
+        # Fonts as in the window (18 pt at the design size) for a 960 x 720 figure.
+        scene_view.set_scale(self.size[1] * scene_view.DESIGN_HEIGHT / 720.0)
         self.view.draw(self.plotter, [(0, 0), (1, 0)], source, mode, pixel_xy, **kw)
-        return np.asarray(self.plotter.screenshot(None, return_img=True))[..., :3]
+        self.plotter.render()  # screenshot() alone may return the last rendered image
+        # a copy: the screenshot buffer may be reused by the next frame
+        return np.array(self.plotter.screenshot(None, return_img=True)[..., :3])
 
     def close(self) -> None:
         self.plotter.close()
