@@ -73,6 +73,26 @@ def test_stage_matches_baseline(scene, stage, tmp_path):
                               f"{baseline} (new picture: {out})")
 
 
+def test_coverage_and_pass_match_baseline(tmp_path):
+    """Coverage (primitive -> pixels) of the top hit, inspecting pass 1 (``--coverage
+    --pass 1``): the tinted pixels on the render panel and the panel's coverage line."""
+    from ui.window import screenshot
+
+    out = tmp_path / "point_coverage_pass1.png"
+    shot = dict(SHOT, estimator="plane-t1t2", pixel_xy=(30, 20))
+    img = screenshot(str(ROOT / "scenes" / "point.toml"), "intersect", out=str(out),
+                     pass_index=1, coverage=True, **shot)
+    assert img.shape[:2] == (450, 800)
+    baseline = BASELINES / "point_coverage_pass1.png"
+    if UPDATE:
+        baseline.write_bytes(out.read_bytes())
+        return
+    if not baseline.exists():
+        pytest.fail(f"missing baseline {baseline}; create it with PSURF_UPDATE_BASELINES=1")
+    ssim = structural_similarity(_read(baseline), _read(out), channel_axis=2, data_range=255)
+    assert ssim >= SSIM_MIN, f"coverage: SSIM {ssim:.3f} < {SSIM_MIN} (new picture: {out})"
+
+
 def test_stages_differ():
     """Guard against a baseline set where every stage shows the same picture."""
     imgs = [_read(BASELINES / f"point_{s}.png") for s in STAGES
@@ -104,6 +124,7 @@ def _cli(argv, capsys):
     (["--pixel", "64,0"], "outside the 64x48 image"),
     (["--pixel", "1,1", "--estimator", "nope"], "unknown estimator"),
     (["--pixel", "1,1", "--estimator", "reference"], "photon estimator"),
+    (["--pixel", "1,1", "--passes", "2", "--pass", "2"], "passes 0..1"),
 ])
 def test_cli_errors_are_one_line(extra, message, capsys, tmp_path):
     argv = ["screenshot", str(ROOT / "scenes" / "point.toml"), "--stage", "trace",

@@ -598,6 +598,11 @@ class App:
         ren = self.p.renderers[i]
         picker = vtkCellPicker()
         picker.SetTolerance(0.002)
+        # Only primitives: the translucent medium box in front of them must not catch the ray.
+        picker.PickFromListOn()
+        for name, actor in ren.actors.items():
+            if name.partition("-")[0] in primitives_view.PRIM_ACTORS:
+                picker.AddPickList(actor)
         if not picker.Pick(display_xy[0], display_xy[1], 0.0, ren):
             return None
         target = primitives_view.picked_primitive(ren, picker.GetActor(), picker.GetCellId())

@@ -1,0 +1,265 @@
+"""The window's interaction: picking a pixel by clicking, coverage (primitive -> pixels), the
+inspected pass, buttons, estimator members and the debounced medium / photon controls.
+
+The conversions are pure functions (``ui.controls``) checked against VTK's own
+display -> world transform; the actions are driven on an off-screen plotter, clicks also as
+synthetic VTK mouse events through the interactor (the path a real click takes).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+pv.OFF_SCREEN = True
+
+from ui import controls  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+POINT = str(ROOT / "scenes" / "point.toml")
+
+
+# --------------------------------------------------------------------------- pure picking
+def test_panel_to_pixel_cell_layout():
+    # pixel (X, Y) is the cell [X, X+1] x [H-Y-1, H-Y]
+    assert controls.panel_to_pixel((0.2, 47.9), 64, 48) == (0, 0)
+    assert controls.panel_to_pixel((63.99, 0.01), 64, 48) == (63, 47)
+    assert controls.panel_to_pixel((10.5, 48 - 5 - 0.5), 64, 48) == (10, 5)
+    for outside in ((-0.01, 10), (64.0, 10), (10, -0.5), (10, 48.0)):
+        assert controls.panel_to_pixel(outside, 64, 48) is None
+
+
+def test_display_panel_round_trip():
+    vp = (0.5, 0.55, 0.75, 1.0)
+    args = ((800, 450), vp, (32.0, 27.0), 30.0)
+    for d in ((401.0, 248.0), (600.0, 300.0), (799.0, 449.0)):
+        w = controls.display_to_panel(d, *args)
+        back = controls.panel_to_display(w, *args)
+        assert np.allclose(back, d)
+    # the viewport centre is the focal point; the viewport's height spans 2 * parallel_scale
+    assert np.allclose(controls.display_to_panel((500.0, 348.75), *args), (32.0, 27.0))
+    top = controls.display_to_panel((500.0, 450.0), *args)
+    assert np.isclose(top[1] - 27.0, 30.0)
+
+
+def test_viewport_at():
+    vps = [(0.0, 0.0, 0.5, 1.0), (0.5, 0.55, 0.75, 1.0), (0.75, 0.55, 1.0, 1.0),
+           (0.5, 0.0, 1.0, 0.55)]
+    assert controls.viewport_at((10, 10), (800, 450), vps) == 0
+    assert controls.viewport_at((450, 400), (800, 450), vps) == 1
+    assert controls.viewport_at((700, 400), (800, 450), vps) == 2
+    assert controls.viewport_at((700, 100), (800, 450), vps) == 3
+    assert controls.viewport_at((900, 100), (800, 450), vps) is None
+
+
+# --------------------------------------------------------------------------- pure controls
+def test_estimator_members_toggle():
+    from psurf_core.scene_io import load_scene
+
+    scene = load_scene(POINT)
+    est = controls.estimator_with("mis:plane-t1t2+plane-t1t3+planes", scene, {"plane-t1t3"})
+    assert est.spec == "mis:plane-t1t2+plane-t1t2-short"  # 'planes' is plane-t1t2-short
+    assert controls.members(est) == ("plane-t1t2", "plane-t1t2-short")
+    one = controls.estimator_with("mis-power:plane-t1t2+plane-t1t3", scene, {"plane-t1t2"})
+    assert one.spec == "plane-t1t3" and len(one.techniques) == 1
+    with pytest.raises(ValueError, match="at least one"):
+        controls.estimator_with("mis:plane-t1t2+plane-t1t3", scene,
+                                {"plane-t1t2", "plane-t1t3"})
+    preset = controls.estimator_with("paper-multi", scene, {"cone"})
+    assert "cone" not in controls.members(preset) and preset.spec == "paper-multi -cone"
+    assert preset.weighting == "balance"
+
+
+def test_medium_params_and_scene():
+    from psurf_core.scene_io import load_scene
+
+    scene = load_scene(POINT)
+    p = controls.MediumParams(-1.0, 99.0, 1.5, 10).clamped()
+    lo_s, hi_a, hi_g = controls.RANGES["sigma_s"][0], controls.RANGES["sigma_a"][1], 0.9
+    assert (p.sigma_s, p.sigma_a, p.g) == (lo_s, hi_a, hi_g)
+    assert p.photons == controls.RANGES["photons"][0]
+    new = controls.scene_with(scene, controls.MediumParams(1.5, 0.25, -0.3, 1000))
+    assert new.medium.sigma_s == 1.5 and new.medium.sigma_a == 0.25
+    assert new.medium.phase.kind == "hg" and new.medium.phase.g == -0.3
+    assert scene.medium.sigma_s != 1.5  # the loaded scene is untouched (frozen copies)
+    iso = controls.scene_with(scene, controls.MediumParams(1.0, 0.1, 0.0, 1000))
+    assert iso.medium.phase.kind == "isotropic"
+
+
+def test_debouncer_applies_the_last_value_once_quiet():
+    d = controls.Debouncer(delay=0.3)
+    assert d.due(0.0) is None
+    d.push(1, now=0.0)
+    d.push(2, now=0.2)  # a drag: each step restarts the wait
+    assert d.due(0.4) is None
+    assert d.due(0.5) == 2
+    assert d.due(10.0) is None and not d.pending
+
+
+def test_coverage_mesh_outline():
+    from ui.primitives_view import coverage_mesh
+
+    m = np.zeros((4, 5), bool)
+    m[1, 1:3] = True  # two pixels side by side: 6 outline edges, 2 cells
+    cells, outline = coverage_mesh(m)
+    assert cells.n_cells == 2 and outline.n_lines == 6
+    # pixel (1, 1) spans x in [1, 2], y in [H-Y-1, H-Y] = [2, 3]
+    b = cells.bounds
+    assert np.allclose([b[0], b[1], b[2], b[3]], [1, 3, 2, 3])
+    assert coverage_mesh(np.zeros((3, 3), bool))[0].n_cells == 0
+
+
+# --------------------------------------------------------------------------- the window
+@pytest.fixture(scope="module")
+def window():
+    from ui.window import App, build_state, compose, make_plotter
+
+    state = build_state(POINT, "mis:plane-t1t2+planes", seed=1, pixel_xy=(32, 24),
+                        photons=100, passes=2)
+    plotter = make_plotter((800, 450), off_screen=True)
+    compose(plotter, state)
+    app = App(plotter, state)
+    app.bind()
+    plotter.render()
+    yield app
+    plotter.close()
+
+
+def test_pixel_display_agrees_with_vtk(window):
+    """The pure conversion matches VTK's display -> world transform of the panel."""
+    app = window
+    for panel in ("render", "variance"):
+        ren = app.p.renderers[app._panel_index(panel)]
+        for pix in ((0, 0), (10, 5), (63, 47)):
+            d = app.pixel_display(panel, pix)
+            ren.SetDisplayPoint(d[0], d[1], 0.0)
+            ren.DisplayToWorld()
+            w = np.array(ren.GetWorldPoint())
+            w = w[:3] / w[3]
+            px_world = 2.0 * ren.GetActiveCamera().GetParallelScale() / (
+                (ren.GetViewport()[3] - ren.GetViewport()[1]) * app.p.window_size[1])
+            assert abs(w[0] - (pix[0] + 0.5)) < px_world
+            assert abs(w[1] - (48 - pix[1] - 0.5)) < px_world
+
+
+def test_click_picks_pixel_on_both_panels(window):
+    app, s = window, window.s
+    assert app.click(app.pixel_display("render", (10, 5))) == "pixel"
+    assert s.pixel_xy == (10, 5) and s.inspection.pixel_xy == (10, 5)
+    assert app.click(app.pixel_display("variance", (50, 40))) == "pixel"
+    assert s.pixel_xy == (50, 40) and s.inspection.pixel_xy == (50, 40)
+    # a click in the 3D view is left to the camera
+    assert app.click((100, 200)) is None and s.pixel_xy == (50, 40)
+
+
+def test_synthetic_mouse_event_picks_pixel(window):
+    """A left click sent through the VTK interactor reaches the picking observer."""
+    app, s = window, window.s
+    ii = app.p.iren.interactor
+    ii.Enable()  # an off-screen interactor is not started; events need it enabled
+    x, y = (int(round(v)) for v in app.pixel_display("render", (20, 30)))
+    ii.SetEventPosition(x, y)
+    ii.LeftButtonPressEvent()
+    ii.LeftButtonReleaseEvent()
+    assert s.pixel_xy == (20, 30) and s.inspection.pixel_xy == (20, 30)
+
+
+def _centre(app, action):
+    rect = dict(app.controls.rects())[action]
+    return (0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3]))
+
+
+def test_buttons(window):
+    app, s = window, window.s
+    s.stepper.reset()
+    assert app.click(_centre(app, "next")) == "button" and s.stage == "create"
+    assert app.click(_centre(app, "previous")) == "button" and s.stage == "trace"
+    assert app.click(_centre(app, "pass+")) == "button" and s.pass_index == 1
+    assert s.inspection.pass_index == 1
+    app.step_pass(5)  # clamped to the passes the panels hold
+    assert s.pass_index == s.acc.n - 1
+    app.step_pass(-5)
+    assert s.pass_index == 0 and s.inspection.pass_index == 0
+    app.click(_centre(app, "help"))
+    assert s.show_help
+    app.toggle_help()
+
+
+def test_coverage_follows_the_selected_hit(window):
+    from psurf_core.inspect import primitive_pixels
+    from ui.window import coverage_target, panel_text
+
+    app, s = window, window.s
+    app.set_pixel((32, 24))
+    assert len(s.inspection.table) > 1
+    app.toggle_coverage()
+    name, batch, prim = coverage_target(s)
+    want = primitive_pixels(s.scene, s.estimator, s.seed, s.pass_index, name, prim,
+                            s.settings, batch=batch)
+    assert np.array_equal(s.coverage_mask, want) and want.any()
+    assert want[24, 32]  # the primitive of a hit of this pixel reaches this pixel
+    assert f"reaches {int(want.sum())} pixels" in panel_text(s)
+    first = (name, batch, prim)
+    app.step_hit(1)
+    assert coverage_target(s) != first or len(s.inspection.table) == 1
+    app.toggle_coverage()
+    assert s.coverage_mask is None and "coverage" not in panel_text(s)
+
+
+def test_right_click_picks_a_primitive(window):
+    from ui.window import coverage_target
+
+    app, s = window, window.s
+    app.set_pixel((32, 24))
+    s.stepper.go("create")
+    app.redraw()
+    ren = app.p.renderers[0]
+    name = next(n for n in ren.actors if n.startswith("prims-") and not n.endswith("edges"))
+    mesh = pv.wrap(ren.actors[name].GetMapper().GetInput())
+    cell = int(np.argmax(mesh.compute_cell_sizes(length=False, volume=False)["Area"]))
+    centre = mesh.extract_cells([cell]).center
+    ren.SetWorldPoint(*centre, 1.0)
+    ren.WorldToDisplay()
+    dx, dy, _ = ren.GetDisplayPoint()
+    target = app.pick_primitive((dx, dy))
+    assert target is not None and target[0] == name.split("-", 1)[1]
+    assert target[2] in set(mesh.cell_data["prim_row"].tolist())
+    assert s.coverage and coverage_target(s) == target and s.coverage_mask is not None
+    assert app.pick_primitive((700, 100)) is None  # the stage panel: no primitive
+    app.toggle_coverage()
+
+
+def test_member_chip_toggles_and_keeps_one(window):
+    app, s = window, window.s
+    assert app.members == ("plane-t1t2", "plane-t1t2-short")
+    assert app.click(_centre(app, "member:plane-t1t2")) == "button"
+    assert s.estimator.spec == "plane-t1t2-short" and s.disabled == {"plane-t1t2"}
+    app.toggle_member("plane-t1t2-short")  # would leave none: refused
+    assert s.estimator.spec == "plane-t1t2-short" and "at least one" in s.message
+    app.toggle_member_index(0)
+    assert s.estimator.spec == "mis:plane-t1t2+planes" and not s.disabled
+
+
+def test_medium_changes_are_debounced_and_restart(window):
+    app, s = window, window.s
+    now = [100.0]
+    app.clock = lambda: now[0]
+    s.playing = False
+    before = s.scene.medium.sigma_s
+    app.nudge("sigma_s", 1)
+    app.slide("g", 0.5)
+    app.slide("photons", np.log2(200))
+    app.tick()  # not quiet long enough: nothing rebuilt yet
+    assert s.scene.medium.sigma_s == before and s.settings.photons == 100
+    now[0] += 1.0
+    app.tick()
+    assert s.scene.medium.sigma_s == pytest.approx(before * 1.25)
+    assert s.scene.medium.phase.g == 0.5 and s.settings.photons == 200
+    assert s.acc.n == s.initial_passes and s.inspection.settings.photons == 200
+    assert s.inspection.scene is s.scene
+    app.nudge("photons", -1)
+    app.flush()
+    assert s.settings.photons == 100
