@@ -230,9 +230,9 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
             if row["relmse"] is not None:
                 title += f"  relMSE {row['relmse']:.2g}"
             tiles_b.append(Tile(title, values=v, clim=(lo, hi), pixel=True))
-        head = ("equal time, one exposure" if len(ents) > 1 else "progressive render")
+        head = ("progressive renders, one exposure" if len(ents) > 1 else "progressive render")
         return [Area(head, tiles_a, rows=1 if len(ents) <= 3 else None),
-                Area("variance of the mean image" + (" (ratio x time vs the first)"
+                Area("variance of the mean image" + (": Var at equal time vs the first"
                                                      if len(ents) > 1 else ""),
                      tiles_b, rows=1 if len(ents) <= 3 else None, bar=MEAN_VARIANCE_BAR)]
     pick = [i for i, e in enumerate(ents) if e.breakdown is not None]
@@ -285,10 +285,13 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
     kk = _k_of(lay, k)
     kb = lay.k_bin(kk)
     ex = im.auto_exposure(kimg[kb])  # every unweighted image estimates this bin
-    tiles_b = ([Tile(f"{n} unweighted", rgb=im.tone_map(b.unweighted.mean[t, kb], ex))
-                for t, n in enumerate(names)]
-               + [Tile(f"{n} weighted", rgb=im.tone_map(b.weighted.mean[t, kb], ex))
-                  for t, n in enumerate(names)])
+    # Techniques that cannot produce this K (plane-t1t3 at K = 2) would be black tiles.
+    ts = [t for t in range(len(names)) if b.unweighted.mean[t, kb].any()] or \
+        list(range(len(names)))
+    tiles_b = ([Tile(f"{names[t]} unweighted", rgb=im.tone_map(b.unweighted.mean[t, kb], ex))
+                for t in ts]
+               + [Tile(f"{names[t]} weighted", rgb=im.tone_map(b.weighted.mean[t, kb], ex))
+                  for t in ts])
     return [area_a, Area(f"{lay.labels[kb]}: unweighted (top) vs weighted (bottom)", tiles_b,
                          rows=2)]
 

@@ -1,0 +1,91 @@
+"""The image-panel modes (``ui.image_panels``: render, techniques, bounces), off-screen,
+compared with ``tests/baselines/panels_<scene>_<mode>.png`` by SSIM >= 0.95 (as the window's
+stage screenshots; see ``tests/test_ui_screenshots.py`` for the tolerance and how to refresh:
+``PSURF_UPDATE_BASELINES=1``). Synchronous passes (``workers=0``) with a fixed seed, so the
+numbers behind each picture are deterministic."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+pv.OFF_SCREEN = True
+
+from skimage.metrics import structural_similarity  # noqa: E402
+
+from psurf_core.render import RenderSettings  # noqa: E402
+from psurf_core.scene_io import load_scene  # noqa: E402
+from ui.image_panels import MODES, FigureMaker  # noqa: E402
+from ui.progressive import Progressive  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+BASELINES = Path(__file__).resolve().parent / "baselines"
+SSIM_MIN = 0.95
+UPDATE = os.environ.get("PSURF_UPDATE_BASELINES") == "1"
+SIZE = (640, 480)
+CASES = {
+    "point": (["planes", "mis:plane-t1t2+plane-t1t3+sphere"], 3),
+    "area_occluder": (["beams", "planes"], -1),
+}
+
+
+def _read(path: Path) -> np.ndarray:
+    import imageio.v3 as iio
+
+    return np.asarray(iio.imread(path))[..., :3]
+
+
+@pytest.fixture(scope="module")
+def pictures():
+    """Every mode of every case, drawn in turn into one figure (updates and rebuilds)."""
+    out = {}
+    fm = FigureMaker(SIZE)
+    try:
+        for scene_name, (specs, kmax) in CASES.items():
+            scene = load_scene(str(ROOT / "scenes" / f"{scene_name}.toml"))
+            if kmax > 0:
+                scene = scene.with_scatter(max_scatter=kmax)
+            prog = Progressive(scene, specs, RenderSettings(photons=150), seed=3, workers=0,
+                               breakdown=True)
+            prog.run(passes=2)
+            for r in prog.runs:  # measured seconds vary: fix them (titles and Var ratios)
+                r.seconds = 0.5 * r.acc.n
+            for mode in MODES:
+                out[(scene_name, mode)] = fm.frame(prog, mode, pixel_xy=(20, 30))
+    finally:
+        fm.close()
+    return out
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("scene", list(CASES))
+def test_panel_mode_matches_baseline(pictures, scene, mode, tmp_path):
+    import imageio.v3 as iio
+
+    got = pictures[(scene, mode)]
+    assert got.shape == (SIZE[1], SIZE[0], 3)
+    baseline = BASELINES / f"panels_{scene}_{mode}.png"
+    if UPDATE:
+        BASELINES.mkdir(exist_ok=True)
+        iio.imwrite(baseline, got)
+        return
+    if not baseline.exists():
+        pytest.fail(f"missing baseline {baseline}; create it with PSURF_UPDATE_BASELINES=1")
+    ref = _read(baseline)
+    assert ref.shape == got.shape
+    ssim = structural_similarity(ref, got, channel_axis=2, data_range=255)
+    if ssim < SSIM_MIN:
+        iio.imwrite(tmp_path / baseline.name, got)
+    assert ssim >= SSIM_MIN, (f"{scene}/{mode}: SSIM {ssim:.3f} < {SSIM_MIN} against "
+                              f"{baseline} (new picture: {tmp_path / baseline.name})")
+
+
+def test_modes_differ(pictures):
+    imgs = [pictures[("point", m)].astype(int) for m in MODES]
+    for i in range(len(imgs)):
+        for j in range(i + 1, len(imgs)):
+            assert np.abs(imgs[i] - imgs[j]).mean() > 5
