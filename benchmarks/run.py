@@ -155,7 +155,7 @@ def whole_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
     a = time.perf_counter()
     render_pass(scene, est, 0, seed, RenderSettings(photons=photons), tally=tally)
     sec = time.perf_counter() - a
-    return {"seconds": sec, "hits": count[0], "pass_hits_per_second": count[0] / sec}
+    return {"pass_seconds": sec, "pass_hits": count[0], "pass_hits_per_second": count[0] / sec}
 
 
 def two_process(scene, spec: str, photons: int, passes: int) -> dict:
@@ -270,14 +270,14 @@ def main(argv=None) -> int:
     results = {}
     for spec in args.estimators.split(","):
         r = stage_pass(scene, spec, args.photons)
-        r.update(whole_pass(scene, spec, args.photons) | {"hits_stage": r["hits"]})
+        r.update(whole_pass(scene, spec, args.photons))
         results[spec] = r
         s = r["seconds"]
         print(f"{spec:>12}: {r['hits_per_second']:9.3g} hits/s (find+eval), "
               f"{r['pass_hits_per_second']:9.3g} hits/s (whole pass) | "
-              f"{r['pairs']:>9} pairs -> {r['hits_stage']:>9} hits "
+              f"{r['pairs']:>9} pairs -> {r['hits']:>9} hits "
               f"({100 * r['hit_fraction']:.0f}%) | s: " + " ".join(
-                  f"{k} {s[k]:.2f}" for k in STAGES) + f" | pass {r['seconds']:.2f}")
+                  f"{k} {s[k]:.2f}" for k in STAGES) + f" | pass {r['pass_seconds']:.2f}")
         for name, pt in r["techniques"].items():
             if len(r["techniques"]) > 1:
                 print(f"{'':>14}{name:>16}: {pt['pairs']:>9} pairs {pt['hits']:>9} hits | "

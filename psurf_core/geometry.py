@@ -14,6 +14,9 @@ import numpy as np
 from .constants import PARALLEL_EPS, SHADOW_EPS
 from .scene import AreaLight, BoxOccluder, MeshLight, MeshOccluder, Scene, SphereOccluder
 
+#: Padding (scene units) of the blocker boxes of the segment reject in ``Blockers.occluded``.
+_BOUNDS_PAD = 1e-9
+
 #: Elements (rays x triangles) processed per chunk by the numpy triangle test.
 _TRI_CHUNK = 1 << 21
 
@@ -186,6 +189,8 @@ class Blockers:
     quads: tuple  # of (corner, edge_u, edge_v)
     triangles: np.ndarray  # (F, 3, 3), all mesh occluders and mesh lights
     engine: object = None  # _EmbreeTriangles over `triangles`, when available
+    bounds: np.ndarray | None = None  # (N, 2, 3) world boxes holding every blocker
+    planes: np.ndarray | None = None  # (N, 4) (n, n . p) of a planar blocker, NaN otherwise
 
     @property
     def empty(self) -> bool:
@@ -245,12 +250,47 @@ class Blockers:
         n = a.shape[0]
         if self.empty or n == 0:
             return np.zeros(n, dtype=bool)
+        out = np.zeros(n, dtype=bool)
+        if self.bounds is not None and self.planes is not None:
+            # Cheap reject: a segment lies inside its own bounding box, so one whose box meets
+            # no blocker's box is clear; the exact test runs on the others only.
+            # A planar blocker (emitter quad) can only block a segment that crosses its plane
+            # inside the part of the segment the exact test looks at.
+            lo, hi = np.minimum(a, b), np.maximum(a, b)
+            near = np.zeros(n, dtype=bool)
+            for (blo, bhi), pl in zip(self.bounds, self.planes, strict=True):
+                meet = np.all((lo <= bhi + _BOUNDS_PAD) & (hi >= blo - _BOUNDS_PAD), axis=1)
+                if not np.isnan(pl[0]):
+                    meet[np.flatnonzero(meet)] = _crosses_plane(a[meet], b[meet], pl)
+                near |= meet
+            idx = np.flatnonzero(near)
+            if idx.size == 0:
+                return out
+            if idx.size < n:
+                a, b = a[idx], b[idx]
+                n = idx.size
+        else:
+            idx = slice(None)
         v = b - a
         length = np.linalg.norm(v, axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
             d = v / np.where(length > 0, length, 1.0)[:, None]
         hit = self.first_hit(a, d, np.full(n, SHADOW_EPS), length - SHADOW_EPS)
-        return np.isfinite(hit)
+        out[idx] = np.isfinite(hit)
+        return out
+
+
+def _crosses_plane(a: np.ndarray, b: np.ndarray, plane: np.ndarray) -> np.ndarray:
+    """(N,) bool: may segment ``a -> b`` cross the plane ``x . n = c`` (``plane = (n, c)``)
+    at a distance from ``a`` in ``(SHADOW_EPS, |b - a| - SHADOW_EPS)`` (the interval
+    :meth:`Blockers.occluded` tests)? Conservative by half of ``SHADOW_EPS`` at both ends,
+    far more than the rounding of either computation."""
+    da = a @ plane[:3] - plane[3]
+    db = b @ plane[:3] - plane[3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = da / (da - db) * np.linalg.norm(b - a, axis=1)
+    return (da * db <= 0.0) & (t >= 0.5 * SHADOW_EPS) & (t <= np.linalg.norm(b - a, axis=1)
+                                                          - 0.5 * SHADOW_EPS)
 
 
 def blockers_of(scene: Scene) -> Blockers:
@@ -270,6 +310,18 @@ def blockers_of(scene: Scene) -> Blockers:
             quads.append((lt.corner, lt.edge_u, lt.edge_v))
         elif isinstance(lt, MeshLight):
             tris.append(lt.triangles)
+    bounds = [np.stack([np.asarray(c) - r, np.asarray(c) + r]) for c, r in zip(sc, sr, strict=True)]
+    bounds += [np.stack([lo, hi]) for lo, hi in zip(bmin, bmax, strict=True)]
+    planes = [np.full(4, np.nan)] * len(bounds)
+    for corner, eu, ev in quads:
+        q = np.stack([corner, corner + eu, corner + ev, corner + eu + ev])
+        bounds.append(np.stack([q.min(0), q.max(0)]))
+        nq = np.cross(eu, ev)
+        planes.append(np.append(nq, nq @ corner))
+    for t in tris:
+        if t.shape[0]:
+            bounds.append(np.stack([t.reshape(-1, 3).min(0), t.reshape(-1, 3).max(0)]))
+            planes.append(np.full(4, np.nan))
     return Blockers(
         sphere_c=np.array(sc, dtype=float).reshape(-1, 3),
         sphere_r=np.array(sr, dtype=float),
@@ -278,4 +330,6 @@ def blockers_of(scene: Scene) -> Blockers:
         quads=tuple(quads),
         triangles=(tri := np.concatenate(tris, axis=0) if tris else np.zeros((0, 3, 3))),
         engine=_triangle_engine(tri),
+        bounds=np.array(bounds, dtype=float).reshape(-1, 2, 3),
+        planes=np.array(planes, dtype=float).reshape(-1, 4),
     )

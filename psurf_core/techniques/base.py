@@ -145,8 +145,9 @@ class Technique:
         ok = K >= self.min_k
         if self.max_k is not None:
             ok &= K <= self.max_k
-        codes = np.array([KIND_CODE[k] for k in self.lights])
-        return ok & np.isin(kind, codes)
+        allowed = np.zeros(max(KIND_CODE.values()) + 1, dtype=bool)
+        allowed[[KIND_CODE[k] for k in self.lights]] = True
+        return ok & allowed[kind]
 
     def applies_to(self, light) -> bool:
         return light.kind in self.lights
