@@ -220,6 +220,15 @@ def clip_polygons(poly: np.ndarray, count: np.ndarray, normal: np.ndarray, offse
     j = np.arange(v)
     valid = j[None] < count[:, None]
     d = poly @ normal - offset
+    cut = np.flatnonzero(np.any(valid & (d < 0), axis=1))
+    if cut.size < m:
+        # Most polygons lie inside most planes: clip only those that reach outside.
+        out = np.zeros((m, v + 1, 3))
+        out[:, :v] = poly
+        n_out = count.copy()
+        if cut.size:
+            out[cut], n_out[cut] = clip_polygons(poly[cut], count[cut], normal, offset)
+        return out, n_out
     nxt = np.where(j[None] + 1 < count[:, None], j[None] + 1, 0)
     d_n = np.take_along_axis(d, nxt, axis=1)
     p_n = np.take_along_axis(poly, nxt[:, :, None], axis=1)
@@ -250,7 +259,8 @@ def _polygon_spans(cam: Camera, hull, ids, x0, x1, y0, y1, box):
         poly, count = clip_polygons(poly, count, -e, -bmax[axis])
     poly, count = clip_polygons(poly, count, np.asarray(cam.forward, float),
                                 float(np.dot(cam.forward, cam.position)) + _NEAR)
-    v = poly.shape[1]
+    v = max(int(count.max()), 1)
+    poly = poly[:, :v]
     px, py, _ = project(cam, poly.reshape(-1, 3))
     px, py = px.reshape(m, v), py.reshape(m, v)
     j = np.arange(v)

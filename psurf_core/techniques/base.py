@@ -201,15 +201,54 @@ def in_medium(scene: Scene, x: np.ndarray) -> np.ndarray:
     return inside_box(x, scene.medium.bounds_min, scene.medium.bounds_max)
 
 
-def segments_clear(blockers: Blockers, *pairs) -> np.ndarray:
-    """(H,) bool: every segment ``(a, b)`` given is unoccluded (one shadow test each)."""
-    ok = None
+def segments_clear(blockers: Blockers, *pairs, ok: np.ndarray | None = None) -> np.ndarray:
+    """(H,) bool: every segment ``(a, b)`` given is unoccluded (one shadow test each).
+
+    ``ok`` (H,) bool, optional: rows already known invalid (``False``) are not tested and stay
+    ``False``.
+    """
     for a, b in pairs:
         if ok is None:
             ok = np.ones(a.shape[0], dtype=bool)
         idx = np.flatnonzero(ok)
         if idx.size:
             ok[idx] = ~blockers.occluded(a[idx], b[idx])
+    return ok
+
+
+def on_own_segment(scene: Scene, paths, photon: np.ndarray, j: np.ndarray, t: np.ndarray,
+                   T: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """(H,) bool: is ``start + t w`` (``0 < t < T``) known, without a test, to be inside the
+    box and reached unoccluded along the photon's own segment ``j`` (tracer numbering: from
+    vertex ``j - 1`` = ``start`` to vertex ``j``, sampled length ``T``)?
+
+    ``prefix_ok[:, j]`` says the whole segment is unoccluded and vertices ``1..j`` lie in
+    the box; a point before its end is then reached unoccluded, and lies in the (convex) box
+    when the start does too (checked here when the start is the light, ``j = 1``). ``False``
+    only means "not known": the caller tests those rows.
+    """
+    pk = paths.prefix_ok
+    ok = pk.reshape(-1)[photon * pk.shape[1] + j] & (t < T)
+    light = np.flatnonzero(ok & (j == 1))
+    if light.size:
+        ok[light] = in_medium(scene, start[light])
+    return ok
+
+
+def clear_from(scene: Scene, blockers: Blockers, start: np.ndarray, end: np.ndarray,
+               known: np.ndarray) -> np.ndarray:
+    """(H,) bool: ``end`` inside the box and ``start -> end`` unoccluded; rows ``known`` (from
+    :func:`on_own_segment`) are true without a test."""
+    ok = known.copy()
+    idx = np.flatnonzero(~known)
+    if idx.size:
+        a, b = start[idx], end[idx]
+        inb = in_medium(scene, b)
+        res = np.zeros(idx.size, dtype=bool)
+        k = np.flatnonzero(inb)
+        if k.size:
+            res[k] = ~blockers.occluded(a[k], b[k])
+        ok[idx] = res
     return ok
 
 

@@ -21,9 +21,10 @@ from .base import (
     Hits,
     Primitives,
     Technique,
+    clear_from,
     clip_bounds,
     dot,
-    in_medium,
+    on_own_segment,
     on_ray,
     segments_clear,
 )
@@ -112,7 +113,10 @@ class PhotonCylinder(Technique):
         x2 = d["x2"][p]
         x1 = x2 + hits.data["t2"][:, None] * d["w2"][p]
         x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        valid = in_medium(scene, x1) & segments_clear(ctx.blockers, (x2, x1), (x1, x0))
+        own = on_own_segment(scene, paths, prims.photon[p], prims.K[p] - 1, hits.data["t2"],
+                             d["T2"][p], x2)
+        valid = segments_clear(ctx.blockers, (x1, x0),
+                               ok=clear_from(scene, ctx.blockers, x2, x1, own))
         # beta_1^- (1/2pi) [E(t2*)] ss rho0 E(s) / |n . psi|
         scal = camera_vertex(scene, rays, hits, hits.data["w1"]) / (2.0 * np.pi)
         if not self.short:

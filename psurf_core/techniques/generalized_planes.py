@@ -25,9 +25,11 @@ from .base import (
     Hits,
     Primitives,
     Technique,
+    clear_from,
     clip_bounds,
     dot,
     in_medium,
+    on_own_segment,
     on_ray,
     ray_bounds,
     segments_clear,
@@ -116,8 +118,12 @@ class GeneralizedPlane(Technique):
         d = prims.data
         x2, x1 = self._vertices(hits, prims)
         x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        valid = (in_medium(scene, x2) & in_medium(scene, x1)
-                 & segments_clear(ctx.blockers, (d["x3"][p], x2), (x2, x1), (x1, x0)))
+        photon, K = prims.photon[p], prims.K[p]
+        own = on_own_segment(scene, paths, photon, K - 2, hits.data["t3"], d["Tu"][p],
+                             d["x3"][p])
+        ok = clear_from(scene, ctx.blockers, d["x3"][p], x2, own)
+        ok &= in_medium(scene, x1)
+        valid = segments_clear(ctx.blockers, (x2, x1), (x1, x0), ok=ok)
         # beta_1^- st [E(t3*) E(t_a*)] ss rho0 E(s) / |n . psi|
         scal = scene.medium.sigma_t * camera_vertex(scene, rays, hits, d["w1"][p])
         if not self.short:

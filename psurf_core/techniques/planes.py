@@ -22,9 +22,10 @@ from .base import (
     Primitives,
     Technique,
     camera_transmittance,
+    clear_from,
     clip_bounds,
     dot,
-    in_medium,
+    on_own_segment,
     on_ray,
     ray_bounds,
     segments_clear,
@@ -114,7 +115,9 @@ class PhotonPlane(Technique):
         t2, t1 = hits.data["t2"], hits.data["t1"]
         x1 = x2 + t2[:, None] * w2
         x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        valid = in_medium(scene, x1) & segments_clear(ctx.blockers, (x2, x1), (x1, x0))
+        own = on_own_segment(scene, paths, photon, K - 1, t2, d["T2"][p], x2)
+        valid = segments_clear(ctx.blockers, (x1, x0),
+                               ok=clear_from(scene, ctx.blockers, x2, x1, own))
         rho0 = phase_value(-dot(w1, rays.d[hits.ray]), med.phase.g)
         # beta_2 E(t2) ss [rho/p(w1) = 1] E(t1) ss rho0 E(s) / |n . psi|. The weight is read
         # after x1 (beta leaving x1 = beta_2 ss/st / q_roulette(x1)): w1 was sampled only if
