@@ -60,3 +60,17 @@ def test_continues_an_accumulator_and_stops_on_request(pool, scene):
                           on_pass=lambda i, acc, t: i < 3)  # stop after pass 3
     single = render(scene, est, SETTINGS, passes=4, seed=5)
     _same(single, par)
+
+
+def test_render_hook_jobs(scene):
+    """``render --jobs 2`` goes through ``maybe_distributed``; ``--jobs 1`` stays in-process."""
+    import argparse
+
+    from ui.compare_cli import maybe_distributed
+
+    est = parse_estimator("planes", scene)
+    args = argparse.Namespace(dask=None, workers=None, jobs=2)
+    par = maybe_distributed(args, scene, est, SETTINGS, passes=3, seed=11)
+    _same(render(scene, est, SETTINGS, passes=3, seed=11), par)
+    assert maybe_distributed(argparse.Namespace(dask=None, workers=None, jobs=1), scene, est,
+                             SETTINGS, passes=3, seed=11) is None

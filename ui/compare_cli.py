@@ -76,7 +76,8 @@ def _specs(text: str) -> list[str]:
 
 def add_dask_flags(parser: argparse.ArgumentParser) -> None:
     """``--dask ADDRESS`` / ``--workers N`` (mutually exclusive) on ``parser``."""
-    g = parser.add_argument_group("distributed passes (Dask; default: one process, no Dask)")
+    g = parser.add_argument_group("parallel passes (local processes or Dask; default: one "
+                                  "process, no Dask)")
     x = g.add_mutually_exclusive_group()
     x.add_argument("--dask", type=_address, default=None, metavar="ADDRESS",
                    help="send passes to the Dask scheduler at ADDRESS (e.g. tcp://host:8786; "
@@ -85,6 +86,10 @@ def add_dask_flags(parser: argparse.ArgumentParser) -> None:
     x.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                    help="start a local Dask cluster of N single-threaded worker processes on "
                         "127.0.0.1 for this command")
+    x.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
+                   help="run passes in N local worker processes (no Dask; e.g. 2 on a 2-core "
+                        "machine); merged in pass order, so the image equals a "
+                        "single-process run with as many passes (default 1: this process)")
 
 
 def add_compare_parser(subparsers, render_parser: argparse.ArgumentParser | None = None):
@@ -299,6 +304,8 @@ def run_compare(args) -> int:
         if args.clock == "cpu" and (args.dask is not None or args.workers is not None):
             raise _Bad("--clock cpu measures this process only; use --clock wall with "
                        f"--{'dask' if args.dask is not None else 'workers'}")
+        if args.clock == "cpu" and args.jobs > 1:
+            raise _Bad("--clock cpu measures this process only; use --clock wall with --jobs")
         if len(args.photons) not in (1, len(ests)):
             raise _Bad(f"--photons: give one count or one per estimator ({len(ests)}), got "
                        f"{len(args.photons)}")
@@ -324,6 +331,14 @@ def run_compare(args) -> int:
             with cluster_client(args.dask, args.workers) as client:
                 study = st.compare(scene, ests, args.time,
                                    runner=partial(render_distributed, client=client), **kw)
+        elif args.jobs > 1:
+            from functools import partial
+
+            from psurf_core.parallel import pass_pool, render_parallel
+
+            with pass_pool(args.jobs) as pool:
+                study = st.compare(scene, ests, args.time,
+                                   runner=partial(render_parallel, pool=pool), **kw)
         else:
             study = st.compare(scene, ests, args.time, **kw)
     except DistributedError as e:
@@ -358,13 +373,21 @@ def run_compare(args) -> int:
 def maybe_distributed(args, scene, estimator, settings, *, passes=None, time_budget=None,
                       seed=0, on_pass=None, accumulator=None, error=None):
     """The render command's hook: with ``--dask``/``--workers``, render the passes on Dask
-    (:func:`psurf_core.distributed.render_distributed`) and return the ``RenderResult``;
+    (:func:`psurf_core.distributed.render_distributed`) and return the ``RenderResult``; with
+    ``--jobs N > 1``, in N local processes (:func:`psurf_core.parallel.render_parallel`);
     without them, return ``None`` (render in this process, nothing of Dask imported).
 
     ``error`` is the exception class to raise for a cluster that cannot be used (``app.py``
     passes its ``CliError``: one line, exit 2); ``DistributedError`` by default.
     """
     address, workers = getattr(args, "dask", None), getattr(args, "workers", None)
+    jobs = getattr(args, "jobs", 1) or 1
+    if address is None and workers is None and jobs > 1:
+        from psurf_core.parallel import render_parallel
+
+        return render_parallel(scene, estimator, settings, passes=passes,
+                               time_budget=time_budget, seed=seed, jobs=jobs,
+                               accumulator=accumulator, on_pass=on_pass)
     if address is None and workers is None:
         return None
     from psurf_core.distributed import DistributedError, render_distributed
