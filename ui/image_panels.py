@@ -370,9 +370,16 @@ class PanelView:
         """
         areas = mode_areas(source, mode, reference=reference, estimator=estimator,
                            technique=technique, k=k)
-        for idx, (sub, area) in enumerate(zip(subplots, areas, strict=False)):
-            plotter.subplot(*sub)
-            self._draw_area(plotter, f"ip{idx}", area, pixel_xy)
+        # Once a window has been shown pyvista renders after every added actor; a rebuild adds
+        # dozens (seconds in software OpenGL), so rendering is held: the caller renders once.
+        held = plotter.suppress_rendering
+        plotter.suppress_rendering = True
+        try:
+            for idx, (sub, area) in enumerate(zip(subplots, areas, strict=False)):
+                plotter.subplot(*sub)
+                self._draw_area(plotter, f"ip{idx}", area, pixel_xy)
+        finally:
+            plotter.suppress_rendering = held
 
     # ------------------------------------------------------------------ one area
     def _draw_area(self, plotter, tag, area: Area, pixel_xy) -> None:

@@ -3,22 +3,35 @@
 Usage (the window)::
 
     from ui.progressive import Progressive
-    from ui.image_panels import PanelView
+    from ui.image_panels import PanelView, next_mode, MODES, MODE_HELP
 
     prog = Progressive(scene, ["planes", "paper-multi"], RenderSettings(photons=2000),
-                       seed=0, workers=1, breakdown=True)     # starts the worker process
-    panels = PanelView()                                      # keeps the panel actors
-    # in the VTK timer callback (every 100-200 ms):
-    if prog.poll():                                           # non-blocking; True if new passes
-        panels.draw(plotter, [(0, 1), (0, 2)], prog, mode, pixel_xy, reference=None)
-        plotter.render()
-    # 'm' key: mode = image_panels.next_mode(mode); panels.draw(...); plotter.render()
+                       seed=0, workers=1, breakdown=True)  # spawns the worker (~1 s to start)
+    panels = PanelView()                                   # keeps the panel actors
+    mode = "render"                                        # "techniques", "bounces"
+
+    # every timer tick (100-200 ms): poll never waits; draw only when passes arrived
+    if prog.poll():
+        panels.draw(plotter, [(0, 1), (0, 2)], prog, mode, pixel_xy,
+                    reference=None,          # (H, W, 3) image: relMSE per estimator
+                    estimator=None,          # which run techniques/bounces break down
+                    technique=None, k=None)  # bounces: one technique per K, or one K
+        plotter.render()                     # draw() holds rendering; render once after it
+    # 'm': mode = next_mode(mode); panels.draw(...); plotter.render()
     # play / pause: prog.pause() / prog.resume()
-    # new scene, sigma slider, estimator toggles, reset:
-    prog.reset(scene=new_scene, estimators=[...], settings=..., seed=...)
-    # after compose() cleared the subplots, panels.draw(...) rebuilds its actors by itself.
-    # on window close:
-    prog.close()
+    # sliders, estimator toggles, new pixel pass, 'r': prog.reset(scene=..., estimators=[...],
+    #     settings=..., seed=...)   (drops the passes; stale worker results are ignored)
+    # prog.runs[i].acc (Welford), .seconds, .breakdown (BreakdownAccumulator or None);
+    # prog.summary(reference) -> rows with "ratio" (Var at equal time) and "relmse"
+    # window closed: prog.close()
+
+``panels.draw`` rebuilds its actors by itself when the mode, the layout or the window size
+changed, or when ``compose()`` cleared the subplots; otherwise it only updates pixel values,
+colour ranges and texts (~3 ms; a rebuild ~15-60 ms). The tiles are ``ImageData`` with an
+origin and a spacing, so ``ui.controls.pick_pixel`` finds the clicked pixel on any of them.
+In software OpenGL (no GPU) VTK's default 4x multisampling makes every ``plotter.render()``
+of the 1600 x 900 window ~200 ms instead of ~60 ms: the window may want
+``plotter.ren_win.SetMultiSamples(0)`` (``benchmarks/ui_frames.py`` measures both).
 
 ``workers=0`` is the synchronous fallback (screenshots, tests, no multiprocessing): ``poll()``
 then renders one pass itself (blocking) and ``run(passes=N)`` renders N passes of every
