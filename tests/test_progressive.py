@@ -131,3 +131,15 @@ def test_compare_rows_ratio_and_relmse():
     assert rows[1]["relmse"] > 0
     one = SimpleNamespace(label="c", acc=Welford.empty((4, 5, 3)), seconds=0.0)
     assert compare_rows([one])[0]["ratio"] is None
+
+
+def test_a_killed_worker_is_reported(scene):
+    import time
+
+    with Progressive(scene, ["planes"], SETTINGS, seed=0, workers=1) as prog:
+        prog._procs[0].kill()
+        prog._procs[0].join(timeout=10)
+        t0 = time.perf_counter()
+        while not prog.errors and time.perf_counter() - t0 < 10:
+            prog.poll()
+        assert any("exited unexpectedly" in e for e in prog.errors)

@@ -297,6 +297,7 @@ class Progressive:
         self._gen = 0
         self._idle: set = set()
         self.errors: list[str] = []
+        self._dead_reported = False
         self.paused = False
         self._start(Job(scene, tuple(estimators), settings or RenderSettings(), int(seed),
                         bool(breakdown), int(k_max), max_passes, max_seconds))
@@ -458,6 +459,10 @@ class Progressive:
                 self._idle.add(msg[2])
             elif msg[0] == "error":
                 self.errors.append(msg[2])
+        if not got and not self._dead_reported and any(p.exitcode is not None
+                                                        for p in self._procs):
+            self._dead_reported = True  # killed (out of memory, a signal): say so once
+            self.errors.append("a progressive worker process exited unexpectedly")
         return got
 
     def run(self, passes: int | None = None, timeout: float = 600.0) -> None:
