@@ -5,7 +5,7 @@ VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench lint venv clean
+.PHONY: demo test test-slow bench bench-quick lint venv clean
 
 venv: $(STAMP)
 
@@ -33,8 +33,13 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(VPY) -m pytest -q -m slow
 
+# Stage rates per estimator family, 1 vs 2 processes, doubling tables, peak RSS of a 10^6-photon
+# 256x192 pass -> out/bench.json (~10 min on 2 cores); bench-quick: a smaller run (~1 min).
 bench: $(STAMP)
 	$(VPY) benchmarks/run.py
+
+bench-quick: $(STAMP)
+	$(VPY) benchmarks/run.py --quick
 
 lint: $(STAMP)
 	$(VPY) -m ruff check .

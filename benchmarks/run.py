@@ -1,8 +1,9 @@
 """Throughput of each stage per estimator family, scaling tables, peak memory; ``out/bench.json``.
 
 Usage: ``python benchmarks/run.py [--scene scenes/area.toml] [--photons N] [--estimators a,b]
-[--scaling a,b] [--memory-photons N] [--quick]`` (``make bench``). Nothing here is a test:
-numbers depend on the machine and on whatever else runs on it.
+[--scaling a:N,b:N] [--memory-photons N] [--quick]`` (``make bench``, ``make bench-quick``).
+Nothing here is a test: numbers depend on the machine and on whatever else runs on it (the
+JSON keeps the command line; compare runs made back to back, as ratios).
 
 What is measured (one process, one core; every rate names its own numerator and clock):
 
@@ -19,8 +20,11 @@ What is measured (one process, one core; every rate names its own numerator and 
 * ``two_process``: passes per second of :func:`psurf_core.parallel.render_parallel` with two
   worker processes against one process, same passes (the images are checked bit-identical).
 * ``scaling``: each rate at 1x, 2x, 4x the photon count and at 1x, 2x, 4x the image side.
-* ``peak_memory_bytes``: peak resident set size (``ru_maxrss``) of a fresh subprocess that
-  renders one pass of ``planes`` with ``--memory-photons`` photons at 256x192.
+* ``peak_memory_bytes``: peak resident set size (``ru_maxrss``) of fresh subprocesses that
+  render one pass of ``planes`` at 256x192: ``--memory-photons`` photons (every 32nd row's
+  rays: the photons are traced, and their primitives created and binned, as for the whole
+  image), and 1/50 of them over the whole image (full chunks of ray-primitive pairs); the
+  larger of the two.
 """
 
 from __future__ import annotations
@@ -251,13 +255,12 @@ def _print_scaling(spec: str, rows: dict) -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="scenes/area.toml")
-    ap.add_argument("--photons", type=int, default=20_000)
+    ap.add_argument("--photons", type=int, default=5000)
     ap.add_argument("--estimators",
                     default="planes,plane-t1t2,plane-t1t3,cone,cylinder,points,bre,beams,"
                             "paper-multi")
-    ap.add_argument("--scaling", default="planes,paper-multi",
-                    help="estimators for the doubling tables ('' for none)")
-    ap.add_argument("--scaling-photons", type=int, default=2000)
+    ap.add_argument("--scaling", default="planes:2000,paper-multi:400",
+                    help="ESTIMATOR:PHOTONS,... for the doubling tables ('' for none)")
     ap.add_argument("--memory-photons", type=int, default=1_000_000,
                     help="photons of the peak-memory pass at 256x192 (0 skips it)")
     ap.add_argument("--memory-row-step", type=int, default=32,
@@ -265,11 +268,11 @@ def main(argv=None) -> int:
     ap.add_argument("--parallel-passes", type=int, default=4,
                     help="passes of the 1-vs-2-process comparison (0 skips it)")
     ap.add_argument("--quick", action="store_true",
-                    help="small sizes: 5000 photons, 200k memory photons, no scaling")
+                    help="small sizes: 2000 photons, 10^5 memory photons, no scaling")
     ap.add_argument("--out", default="out/bench.json")
     args = ap.parse_args(argv)
     if args.quick:
-        args.photons, args.memory_photons, args.scaling = 5000, 200_000, ""
+        args.photons, args.memory_photons, args.scaling = 2000, 100_000, ""
     scene = load_scene(args.scene)
     cmd = "python benchmarks/run.py " + " ".join(sys.argv[1:] if argv is None else argv)
     print(f"# {cmd}\n# {args.scene}: {scene.camera.width}x{scene.camera.height}, "
@@ -309,16 +312,17 @@ def main(argv=None) -> int:
         print(f"2 processes vs 1, planes, {tp['passes']} passes: {tp['speedup']:.2f}x "
               f"(bit-identical: {tp['bit_identical']})")
     out["scaling"] = {}
-    for spec in filter(None, args.scaling.split(",")):
-        out["scaling"][spec] = scaling(scene, spec, args.scaling_photons)
+    for item in filter(None, args.scaling.split(",")):
+        spec, _, n = item.partition(":")
+        out["scaling"][spec] = scaling(scene, spec, int(n or 2000))
         _print_scaling(spec, out["scaling"][spec])
     if args.memory_photons:
         # A whole 10^6-photon pass at 256x192 evaluates ~2e9 plane hits (too long for a
         # benchmark): the photon side (tracing, creation, binning of every primitive) runs
         # in full with every 32nd row's rays; the pair side (chunks of max_pairs) runs in full
-        # over the whole image with a tenth of the photons. Peak = the larger of the two.
+        # over the whole image with 1/50 of the photons. Peak = the larger of the two.
         runs = [peak_memory(args.scene, "planes", args.memory_photons, args.memory_row_step),
-                peak_memory(args.scene, "planes", max(args.memory_photons // 10, 1), 1)]
+                peak_memory(args.scene, "planes", max(args.memory_photons // 50, 1), 1)]
         out["memory"] = runs
         out["peak_memory_bytes"] = max(m["peak_rss_bytes"] for m in runs)
         for m in runs:
