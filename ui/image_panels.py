@@ -230,10 +230,9 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
             if row["relmse"] is not None:
                 title += f"  relMSE {row['relmse']:.2g}"
             tiles_b.append(Tile(title, values=v, clim=(lo, hi), pixel=True))
-        head = ("progressive renders, one exposure" if len(ents) > 1 else "progressive render")
+        head = "renders, one exposure" if len(ents) > 1 else "progressive render"
         return [Area(head, tiles_a, rows=1 if len(ents) <= 3 else None),
-                Area("variance of the mean image" + (": Var at equal time vs the first"
-                                                     if len(ents) > 1 else ""),
+                Area("variance of the mean" + (", Var at equal time" if len(ents) > 1 else ""),
                      tiles_b, rows=1 if len(ents) <= 3 else None, bar=MEAN_VARIANCE_BAR)]
     pick = [i for i, e in enumerate(ents) if e.breakdown is not None]
     # By default the first MIS set (the pictures are about MIS), or the first estimator that
@@ -262,15 +261,15 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
                                                                                 strict=True)]
         tiles_b = [Tile(n, values=x, clim=(0.0, 1.0), log=False, cmap=WEIGHT_CMAP)
                    for n, x in zip(names, w, strict=True)]
-        return [Area(f"weighted contribution per technique, {b.n} passes (one exposure)",
+        return [Area(f"weighted contributions, {b.n} passes",
                      tiles_a),
-                Area("weight map: the technique's share of each pixel", tiles_b,
+                Area("weight maps: share of each pixel", tiles_b,
                      bar=WEIGHT_BAR)]
     # bounces
     kimg = b.k_images()
     tiles_a = [Tile(lbl, rgb=im.tone_map(x, exposure)) for lbl, x in zip(lay.labels, kimg,
                                                                          strict=True)]
-    area_a = Area(f"{e.label}: image per scatter count, {b.n} passes (one exposure)", tiles_a)
+    area_a = Area(f"per scatter count K, {b.n} passes", tiles_a)
     if technique is not None:
         t = b.index(technique)
         un = b.unweighted.mean[t]
@@ -280,7 +279,7 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
                     for lbl, x in zip(lay.labels, un, strict=True)]
                    + [Tile(f"{lbl} weighted", rgb=im.tone_map(x, ex))
                       for lbl, x in zip(lay.labels, we, strict=True)])
-        return [area_a, Area(f"{names[t]}: unweighted (top) vs weighted (bottom)", tiles_b,
+        return [area_a, Area(f"{names[t]}: unweighted / weighted", tiles_b,
                              rows=2)]
     kk = _k_of(lay, k)
     kb = lay.k_bin(kk)
@@ -292,7 +291,7 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
                 for t in ts]
                + [Tile(f"{names[t]} weighted", rgb=im.tone_map(b.weighted.mean[t, kb], ex))
                   for t in ts])
-    return [area_a, Area(f"{lay.labels[kb]}: unweighted (top) vs weighted (bottom)", tiles_b,
+    return [area_a, Area(f"{lay.labels[kb]}: unweighted / weighted", tiles_b,
                          rows=2)]
 
 
@@ -402,7 +401,7 @@ class PanelView:
                                 (h, w), pixel_xy)
             self._key[tag], self._parts[tag] = key, parts
         # in-place update: values, ranges, texts
-        parts["header"].SetInput(area.header)
+        parts["header"].SetInput(_fit(area.header, 0.98 * vw))
         for tile, (grid, actor, text), room in zip(area.tiles, parts["tiles"], parts["fits"],
                                                    strict=True):
             text.SetInput(_fit(tile.title, room))
@@ -438,7 +437,7 @@ class PanelView:
         rows, cols, s = _grid_shape(max(n, 1), w, h, vw, usable_h, label_px, area.rows)
         s = max(s, 1e-3)
         names, fits = [], []
-        header = _label(plotter, area.header, 0.5, 1.0 - 4 / vh, FONT_SMALL,
+        header = _label(plotter, _fit(area.header, 0.98 * vw), 0.5, 1.0 - 4 / vh, FONT_SMALL,
                           name=f"{tag}-header", align="center", bold=True)
         names.append(f"{tag}-header")
         tiles = []
