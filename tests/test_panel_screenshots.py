@@ -89,3 +89,29 @@ def test_modes_differ(pictures):
     for i in range(len(imgs)):
         for j in range(i + 1, len(imgs)):
             assert np.abs(imgs[i] - imgs[j]).mean() > 5
+
+
+def test_modes_before_any_pass_and_without_breakdown():
+    """Right after a reset (no pass yet) and for an estimator without a breakdown, every mode
+    draws (a message tile where there is nothing to show), with finite numbers only."""
+    from ui.image_panels import mode_areas
+
+    scene = load_scene(str(ROOT / "scenes" / "point.toml"))
+    empty = Progressive(scene, ["planes", "beams"], RenderSettings(photons=50), workers=0,
+                        breakdown=True)
+    plain = Progressive(scene, ["planes"], RenderSettings(photons=50), workers=0)
+    plain.run(passes=1)
+    fm = FigureMaker((320, 240))
+    try:
+        for prog in (empty, plain):
+            for mode in MODES:
+                img = fm.frame(prog, mode)
+                assert img.shape == (240, 320, 3)
+                for area in mode_areas(prog, mode):
+                    for t in area.tiles:
+                        assert t.values is None or np.isfinite(t.values).all()
+        texts = [t.title for a in mode_areas(plain, "techniques") for t in a.tiles]
+        assert any("no breakdown" in t for t in texts)
+        assert "Var: n/a" in [t.title for t in mode_areas(empty, "render")[1].tiles]
+    finally:
+        fm.close()
