@@ -115,3 +115,36 @@ def test_modes_before_any_pass_and_without_breakdown():
         assert "Var: n/a" in [t.title for t in mode_areas(empty, "render")[1].tiles]
     finally:
         fm.close()
+
+
+def test_panel_view_updates_in_place_and_rebuilds_after_a_clear():
+    from ui.image_panels import MEAN_VARIANCE_BAR, draw_image_panels
+
+    scene = load_scene(str(ROOT / "scenes" / "point.toml"))
+    prog = Progressive(scene, ["planes", "beams"], RenderSettings(photons=50), workers=0)
+    prog.run(passes=2)
+    pl = pv.Plotter(window_size=[640, 320], off_screen=True, shape=(1, 2), border=False)
+    try:
+        view = draw_image_panels(pl, [(0, 0), (0, 1)], prog, "render", (3, 4))
+        pl.subplot(0, 1)
+        grid = view._parts["ip1"]["tiles"][0][0]
+        prog.run(passes=3)
+        assert draw_image_panels(pl, [(0, 0), (0, 1)], prog, "render", (3, 4), view) is view
+        assert view._parts["ip1"]["tiles"][0][0] is grid  # same actors, new values
+        expected = np.clip(prog.runs[0].acc.variance.mean(axis=-1) / 3,
+                           *view_clim(view))[::-1].ravel()
+        np.testing.assert_allclose(np.asarray(grid.cell_data["values"]), expected)
+        pl.renderer.clear_actors()  # what the window's compose() does to its cells
+        for title in list(pl.scalar_bars.keys()):
+            pl.remove_scalar_bar(title)
+        view.draw(pl, [(0, 0), (0, 1)], prog, "render", (3, 4))
+        pl.subplot(0, 1)
+        assert "ip1-tile0" in pl.renderer.actors
+        assert MEAN_VARIANCE_BAR in pl.scalar_bars
+    finally:
+        pl.close()
+
+
+def view_clim(view):
+    actor = view._parts["ip1"]["tiles"][0][1]
+    return actor.mapper.GetScalarRange()
