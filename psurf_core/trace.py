@@ -189,15 +189,15 @@ def trace(
     e = emit(scene, rng, n_photons)
     n = n_photons
 
-    # Work only on the active photons (compacted index list `act`); per-depth results are
-    # scattered into full-size slices so the record keeps one row per emitted photon.
-    xs = [e["x0"]]
-    ws, ts, betas, alives, clips = [], [], [], [], []
+    # Work only on the active photons (compacted index list `act`). Per-depth results are
+    # kept compact (the active rows only) and scattered once into the full-size record at the
+    # end: allocating and stacking full-size slices at every depth cost more than the work.
     oks_hist = [np.ones(n, dtype=bool)]  # prefix_ok per vertex
+    steps = []  # per segment j: (act, t, w, beta, x_j, clip) of its active photons
     act = np.arange(n)
     w = e["w1"].copy()
     beta = e["beta"].copy()
-    x = e["x0"]
+    x = e["x0"].copy()  # current vertex of every photon (the last one for finished photons)
     for j in range(1, depth + 1):
         # Segment j leaves vertex j-1. Roulette decides before sampling it (depth only).
         if j > 1:
@@ -209,36 +209,36 @@ def trace(
             act = act[keep]
             w[act] = sampling.sample_phase(w[act], g, rng)
             beta[act] *= med.albedo
-        alive = np.zeros(n, dtype=bool)
-        alive[act] = True
-        tj = np.zeros(n)
-        tj[act] = sampling.sample_free_flight(st, rng, act.size)
+        ta = sampling.sample_free_flight(st, rng, act.size)
         xa, wa = x[act], w[act]
-        xn = x.copy()
-        xn[act] = xa + tj[act, None] * wa
+        xna = xa + ta[:, None] * wa
         # Validity of the sampled prefix: in box and unoccluded.
         ok = np.zeros(n, dtype=bool)
-        chk = act[oks_hist[-1][act]]
+        sel = oks_hist[-1][act]
+        chk = act[sel]
         if chk.size:
-            inb = inside_box(xn[chk], med.bounds_min, med.bounds_max)
-            ok[chk] = inb & ~blockers.occluded(x[chk], xn[chk])
-        clip = np.zeros((n, 2))
+            inb = inside_box(xna[sel], med.bounds_min, med.bounds_max)
+            ok[chk] = inb & ~blockers.occluded(xa[sel], xna[sel])
         te, tx = ray_box(xa, wa, med.bounds_min, med.bounds_max)
-        clip[act] = np.stack([np.clip(te, 0.0, tj[act]), np.clip(tx, 0.0, tj[act])], axis=-1)
-        wj = np.zeros((n, 3))
-        wj[act] = wa
-        bj = np.zeros((n, 3))
-        bj[act] = beta[act]
-        clips.append(clip)
-        ws.append(wj)
-        ts.append(tj)
-        betas.append(bj)
-        alives.append(alive)
-        xs.append(xn)
+        clip = np.stack([np.clip(te, 0.0, ta), np.clip(tx, 0.0, ta)], axis=-1)
+        steps.append((act, ta, wa, beta[act], xna, clip))
+        x[act] = xna
         oks_hist.append(ok)
-        x = xn
         if act.size == 0:
             break
+
+    d = len(steps)
+    # Vertices depth-major (contiguous row copies carry a finished photon's last vertex
+    # forward), then one transposing copy; the rest is scattered into zeros directly.
+    xd = np.empty((d + 1, n, 3))
+    xd[0] = e["x0"]
+    ws, betas = np.zeros((n, d, 3)), np.zeros((n, d, 3))
+    ts, alives, clips = np.zeros((n, d)), np.zeros((n, d), dtype=bool), np.zeros((n, d, 2))
+    for i, (a, ta, wa, ba, xna, clip) in enumerate(steps):
+        xd[i + 1] = xd[i]
+        xd[i + 1, a] = xna
+        ws[a, i], betas[a, i], ts[a, i], alives[a, i], clips[a, i] = wa, ba, ta, True, clip
+    xs = np.ascontiguousarray(xd.transpose(1, 0, 2))
 
     return PhotonPaths(
         n_emitted=n,
@@ -247,11 +247,11 @@ def trace(
         light_uv=e["light_uv"],
         tri=e["tri"],
         light_normal=e["light_normal"],
-        x=np.stack(xs, axis=1),
-        w=np.stack(ws, axis=1),
-        t=np.stack(ts, axis=1),
-        beta=np.stack(betas, axis=1),
-        alive=np.stack(alives, axis=1),
+        x=xs,
+        w=ws,
+        t=ts,
+        beta=betas,
+        alive=alives,
         prefix_ok=np.stack(oks_hist, axis=1),
-        clip=np.stack(clips, axis=1),
+        clip=clips,
     )
