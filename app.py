@@ -113,6 +113,9 @@ def build_parser() -> Parser:
                    help=f"scene file (default {DEMO_SCENE})")
     d.add_argument("--out", default=DEMO_OUT, metavar="DIR",
                    help=f"output directory, created if missing (default {DEMO_OUT}/)")
+    d.add_argument("--estimators", default=None, metavar="A,B",
+                   help="window: estimators rendered side by side at equal time (the first "
+                        "is the one the stages inspect; default planes)")
     d.add_argument("--no-window", action="store_true",
                    help="never open the interactive app; always write the images")
     # Hidden knobs for tests and quick looks.
@@ -182,13 +185,32 @@ def _k_range(scene, min_k: int = 1) -> str:
     return f"K in [{lo}, {'inf' if scene.max_scatter == -1 else scene.max_scatter}]"
 
 
+def _window_specs(text: str | None, scene) -> list | None:
+    """``--estimators A,B`` checked before the window opens (the first needs photons)."""
+    if not text:
+        return None
+    from psurf_core import parse_estimator
+
+    specs = [e.strip() for e in text.split(",")]
+    try:
+        if any(not e for e in specs) or parse_estimator(specs[0], scene).reference:
+            raise ValueError(f"must be estimator specs A,B with a photon estimator first "
+                             f"(the one the stages inspect), got {text!r}")
+        for e in specs[1:]:
+            parse_estimator(e, scene)
+    except ValueError as e:
+        raise CliError(f"--estimators: {e}") from None
+    return specs
+
+
 def cmd_demo(args) -> int:
     scene_path = _demo_scene_path(args.scene)
     scene = _load_scene(scene_path)
+    specs = _window_specs(args.estimators, scene)
     if not args.no_window:
         run = _interactive_run()
         if run is not None:
-            run(scene_path)
+            run(scene_path, estimators=specs)
             return 0
     if os.path.exists(args.out) and not os.path.isdir(args.out):
         raise CliError(f"--out {args.out}: exists and is not a directory")

@@ -69,8 +69,10 @@ def test_estimator_members_toggle():
         controls.estimator_with("mis:plane-t1t2+plane-t1t3", scene,
                                 {"plane-t1t2", "plane-t1t3"})
     preset = controls.estimator_with("paper-multi", scene, {"cone"})
-    assert "cone" not in controls.members(preset) and preset.spec == "paper-multi -cone"
-    assert preset.weighting == "balance"
+    assert "cone" not in controls.members(preset) and preset.spec.startswith("mis:")
+    assert preset.weighting == "balance" and len(controls.members(preset)) >= 2
+    with pytest.raises(ValueError, match="MIS sets"):
+        controls.estimator_with("paper-full", scene, {"cone"})
 
 
 def test_medium_params_and_scene():
@@ -263,3 +265,71 @@ def test_medium_changes_are_debounced_and_restart(window):
     app.nudge("photons", -1)
     app.flush()
     assert s.settings.photons == 100
+
+
+# --------------------------------------------------------------------------- progressive
+def test_progressive_panels_tick_pick_and_modes():
+    """The window with ``ui.progressive`` (``workers=0``: the tick renders the pass itself,
+    deterministically): passes arrive through ``tick``, a click on a scaled tile of
+    ``image_panels.PanelView`` picks the pixel, coverage lands on the inspected estimator's
+    tile, ``m`` cycles the panel modes, a medium change restarts the worker's job."""
+    from ui.window import App, attach_progressive, build_state, compose, make_plotter
+
+    state = build_state(POINT, "mis:plane-t1t2+planes", seed=1, pixel_xy=(32, 24),
+                        photons=100, render_passes=False)
+    state.extra_specs = ("planes",)
+    attach_progressive(state, workers=0)
+    plotter = make_plotter((800, 450), off_screen=True)
+    try:
+        compose(plotter, state)
+        app = App(plotter, state)
+        app.bind()
+        for _ in range(4):
+            app.tick()
+        assert sum(state.prog.passes) == 4 and state.acc is state.prog.runs[0].acc
+        assert state.acc.n >= 1
+        tiles = controls.image_tiles(plotter.renderers[app._panel_index("render")], 64, 48)
+        assert len(tiles) == 2 and tiles[0][2] != 1.0  # two estimators, scaled tiles
+        assert app.click(app.pixel_display("render", (7, 9))) == "pixel"
+        assert state.pixel_xy == (7, 9)
+        assert app.click(app.pixel_display("variance", (60, 1))) == "pixel"
+        assert state.pixel_xy == (60, 1)
+        app.set_pixel((32, 24))
+        app.toggle_coverage()
+        ren = plotter.renderers[app._panel_index("render")]
+        assert "coverage-cells" in ren.actors
+        b = ren.actors["coverage-cells"].GetBounds()
+        (ox, oy), sp = tiles[0][1], tiles[0][2]
+        assert ox - 1e-6 <= b[0] and b[1] <= ox + 64 * sp + 1e-6  # on the first tile
+        assert oy - 1e-6 <= b[2] and b[3] <= oy + 48 * sp + 1e-6
+        for mode in ("techniques", "bounces", "render"):
+            app.next_mode()
+            assert state.mode == mode
+        app.toggle_play()
+        assert state.prog.paused and not state.playing
+        n = state.acc.n
+        app.tick()
+        assert state.acc.n == n  # paused: nothing rendered
+        app.toggle_play()
+        app.nudge("sigma_a", 1)
+        app.flush()
+        assert state.prog.job.scene is state.scene and state.acc.n == 0
+        assert state.prog.job.specs == ("mis:plane-t1t2+planes", "planes")
+        app.toggle_member("plane-t1t2")
+        assert state.prog.job.specs == ("plane-t1t2-short", "planes")
+    finally:
+        app.close()
+        plotter.close()
+
+
+@pytest.mark.parametrize("value, message", [("nope", "unknown"), ("reference,planes",
+                                                                    "photon estimator first"),
+                                           ("planes,", "estimator specs")])
+def test_window_estimators_flag_errors(value, message, capsys, tmp_path):
+    import app
+
+    rc = app.main(["demo", POINT, "--estimators", value, "--no-window", "--out",
+                   str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and err[0].startswith("psurf: error: --estimators")
+    assert message in err[0] and not (tmp_path / "o").exists()

@@ -3,8 +3,10 @@
 ``python app.py scenes/area.toml`` opens the window; ``PSURF_WINDOW_SCRIPT`` (see
 ``ui.window.SCRIPT_ENV``) plays key presses and mouse clicks through VTK's interactor, one per
 timer tick, takes screenshots and quits. The test checks that the window opens, steps through
-every stage, picks pixels by clicking both image panels, toggles coverage and the inspected
-pass, and closes with exit code 0. By hand (Debian: ``apt-get install xvfb``)::
+every stage, picks pixels by clicking both image panels (the progressive panels of
+``ui.image_panels``), toggles coverage, the inspected pass, the panel mode and the sliders,
+records a GIF, and closes with exit code 0 (the background render worker stopped). By hand
+(Debian: ``apt-get install xvfb``)::
 
     PSURF_WINDOW_SCRIPT="n;n;n;n;click:render:10,30;shot:/tmp/w.png;q" \\
         xvfb-run -a -s "-screen 0 1700x1000x24" .venv/bin/python app.py scenes/area.toml
@@ -23,8 +25,11 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-pytestmark = pytest.mark.skipif(shutil.which("xvfb-run") is None,
-                                reason="xvfb-run not installed (apt-get install xvfb)")
+# In the slow set (``make test-slow``): 20-70 s depending on the machine's load, and
+# ``make test`` should not depend on an X server.
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(shutil.which("xvfb-run") is None,
+                                 reason="xvfb-run not installed (apt-get install xvfb)")]
 
 
 def test_window_opens_steps_picks_and_closes(tmp_path):
@@ -32,9 +37,12 @@ def test_window_opens_steps_picks_and_closes(tmp_path):
 
     shot1, shot2 = tmp_path / "reconstruct.png", tmp_path / "coverage.png"
     script = ";".join(["wait", "n", "n", "n", "n", "click:render:10,30", f"shot:{shot1}",
-                       "p", "p", "p", "p", "click:variance:40,10", "c", "period",
-                       f"shot:{shot2}", "q"])
-    env = dict(os.environ, PSURF_WINDOW_SCRIPT=script, MPLBACKEND="Agg")
+                       "p", "click:variance:40,10", "c", "passes>=2", "period", "m", "w",
+                       f"shot:{shot2}", "v", "passes>=3", "v", "q"])
+    # 800 x 450: the same layout (fonts scale with the height), a quarter of the pixels to
+    # rasterise in software
+    env = dict(os.environ, PSURF_WINDOW_SCRIPT=script, PSURF_WINDOW_SIZE="800,450",
+               MPLBACKEND="Agg")
     env.pop("DISPLAY", None)
     proc = subprocess.run(
         ["xvfb-run", "-a", "-s", "-screen 0 1700x1000x24", sys.executable,
@@ -45,13 +53,14 @@ def test_window_opens_steps_picks_and_closes(tmp_path):
     assert "Traceback" not in proc.stderr, proc.stderr[-2000:]
     lines = [ln for ln in out.splitlines() if ln.startswith("window: key")]
     stages = [ln.split("stage ")[1].split(",")[0] for ln in lines]
-    assert stages[:4] == ["create", "intersect", "evaluate", "reconstruct"]
-    assert stages[4:8] == ["evaluate", "intersect", "create", "trace"]
+    assert stages[:5] == ["create", "intersect", "evaluate", "reconstruct", "evaluate"]
     assert "clicked render" in out and "pixel (10, 30)" in out
     assert "clicked variance" in out and "pixel (40, 10)" in out
-    assert "key period: stage trace, pixel (40, 10), pass 1" in out
+    assert "key period: stage evaluate, pixel (40, 10), pass 1" in out
     assert lines[-1].startswith("window: key q")
+    gifs = list(tmp_path.glob("psurf-record-*.gif"))  # v ... v recorded the window
+    assert len(gifs) == 1 and len(iio.imread(gifs[0], index=None)) >= 2
     for shot in (shot1, shot2):
         img = np.asarray(iio.imread(shot))
-        assert img.shape[:2] == (900, 1600)
+        assert img.shape[:2] == (450, 800)
         assert img.std() > 10  # a drawn window, not a blank frame

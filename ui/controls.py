@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -85,24 +85,57 @@ def panel_to_display(panel_xy, window_size, viewport, focal_xy, parallel_scale: 
             cy + (panel_xy[1] - float(focal_xy[1])) / k)
 
 
-def panel_to_pixel(panel_xy, width: int, height: int):
+def panel_to_pixel(panel_xy, width: int, height: int, origin=(0.0, 0.0), spacing: float = 1.0):
     """The image pixel ``(X, Y)`` (column from the left, row from the top) whose cell contains
-    the panel point, or None outside the ``width x height`` image."""
-    fx, fy = math.floor(panel_xy[0]), math.floor(panel_xy[1])
+    the panel point, or None outside the ``width x height`` image.
+
+    The image's cells are squares of side ``spacing`` from ``origin`` (lower-left corner):
+    ``ui.image_panels.add_render_panel`` draws unit cells from ``(0, 0)``, the tiles of
+    ``image_panels.PanelView`` are scaled and placed side by side.
+    """
+    fx = math.floor((panel_xy[0] - origin[0]) / spacing)
+    fy = math.floor((panel_xy[1] - origin[1]) / spacing)
     x, y = int(fx), int(height - 1 - fy)
     if 0 <= x < width and 0 <= y < height:
         return x, y
     return None
 
 
+def pixel_centre(pixel_xy, height: int, origin=(0.0, 0.0), spacing: float = 1.0):
+    """Panel coordinates of the centre of pixel ``(X, Y)`` (inverse of
+    :func:`panel_to_pixel`)."""
+    return (origin[0] + (pixel_xy[0] + 0.5) * spacing,
+            origin[1] + (height - pixel_xy[1] - 0.5) * spacing)
+
+
+def image_tiles(renderer, width: int, height: int) -> list:
+    """``(name, origin (x, y), spacing)`` of every ``width x height`` image (one cell per
+    pixel) drawn in ``renderer``, by actor name."""
+    from vtkmodules.vtkCommonDataModel import vtkImageData
+
+    out = []
+    for name, actor in sorted(renderer.actors.items()):
+        mapper = actor.GetMapper() if hasattr(actor, "GetMapper") else None
+        data = mapper.GetInput() if mapper is not None else None
+        if isinstance(data, vtkImageData) and tuple(data.GetDimensions()) == (
+                width + 1, height + 1, 1):
+            ox, oy, _ = data.GetOrigin()
+            out.append((name, (ox, oy), float(data.GetSpacing()[0])))
+    return out
+
+
 def pick_pixel(renderer, display_xy, window_size, width: int, height: int):
-    """The pixel under a display position in an image panel (its renderer's parallel camera),
-    or None."""
+    """The pixel under a display position on any image tile of ``renderer`` (an image panel
+    with a parallel camera), or None."""
     cam = renderer.GetActiveCamera()
     fx, fy, _ = cam.GetFocalPoint()
     panel = display_to_panel(display_xy, window_size, renderer.GetViewport(), (fx, fy),
                              cam.GetParallelScale())
-    return panel_to_pixel(panel, width, height)
+    for _, origin, spacing in image_tiles(renderer, width, height):
+        xy = panel_to_pixel(panel, width, height, origin, spacing)
+        if xy is not None:
+            return xy
+    return None
 
 
 # --------------------------------------------------------------------------- estimator members
@@ -111,18 +144,20 @@ def members(est) -> tuple:
     return tuple(t.name for t in est.techniques)
 
 
-def estimator_with(base_spec: str, scene, disabled) -> object:
-    """``base_spec`` parsed for ``scene`` with the techniques named in ``disabled`` left out.
+def estimator_with(base_spec: str, scene, disabled):
+    """``base_spec`` parsed for ``scene`` with the techniques named in ``disabled`` left out,
+    re-parsed from a spec that works on the command line (and in a progressive worker):
+    ``mis:A+B`` (``mis-power:`` kept), or the single remaining technique.
 
-    A plain ``mis:``/``mis-power:`` set is re-parsed from its new spec (``mis:A+B``, or the
-    single remaining technique), so the panel shows a spec that works on the command line;
-    a preset keeps its per-light restrictions and is filtered group by group (its spec then
-    reads ``paper-multi -cone``).
+    A preset of one MIS set (``paper-single``, ``paper-multi``) becomes ``mis:`` of its
+    remaining members; which lights each member estimates is then decided by the scene (a
+    preset may restrict a member to some light kinds, see ``psurf_core.mis``).
 
     Raises
     ------
     ValueError
-        When every member would be disabled.
+        When every member would be disabled, or the estimator has several groups
+        (``paper-full``: two MIS sets).
     """
     from psurf_core.estimators import parse_estimator
 
@@ -134,14 +169,11 @@ def estimator_with(base_spec: str, scene, disabled) -> object:
         raise ValueError("at least one estimator member must stay enabled")
     if not disabled:
         return base
-    head = base_spec.split(":", 1)[0] if ":" in base_spec else None
-    if head in ("mis", "mis-power"):
-        spec = kept[0] if len(kept) == 1 else f"{head}:{'+'.join(kept)}"
-        return parse_estimator(spec, scene)
-    groups = tuple(g2 for g2 in (tuple(t for t in g if t.name not in disabled)
-                                 for g in base.groups) if g2)
-    gone = " ".join(f"-{n}" for n in names if n in disabled)
-    return replace(base, spec=f"{base_spec} {gone}", groups=groups)
+    if len(base.groups) > 1:
+        raise ValueError(f"'{base_spec}' has {len(base.groups)} MIS sets: members can be "
+                         "switched off in one mis:A+B+... set")
+    head = "mis-power" if base.weighting == "power" else "mis"
+    return parse_estimator(kept[0] if len(kept) == 1 else f"{head}:{'+'.join(kept)}", scene)
 
 
 # --------------------------------------------------------------------------- medium
@@ -218,17 +250,22 @@ class Debouncer:
 
 
 # --------------------------------------------------------------------------- buttons
-#: Buttons of the strip along the bottom of the stage panel: ``(action, label)``.
-BUTTONS = (("previous", "< prev"), ("next", "next >"), ("play", "play"), ("reset", "reset"),
-           ("coverage", "coverage"), ("pass-", "pass -"), ("pass+", "pass +"),
-           ("save", "save"), ("help", "help"))
-#: Left edge, bottom and gap of the strip (normalised window coordinates).
-STRIP_X0, STRIP_Y, STRIP_GAP = 0.505, 0.012, 0.006
+#: Buttons along the bottom of the stage panel, two rows (bottom row first):
+#: ``(action, label)``.
+BUTTONS = ((("previous", "< prev"), ("next", "next >"), ("play", "play"), ("reset", "reset"),
+            ("mode", "mode"), ("record", "rec"), ("save", "save"), ("help", "help")),
+           (("coverage", "coverage"), ("pass-", "pass -"), ("pass+", "pass +"),
+            ("sliders", "sliders")))
+#: Left edge, bottom of each row and gap of the strip (normalised window coordinates).
+STRIP_X0, STRIP_Y, STRIP_GAP = 0.505, (0.012, 0.052), 0.006
 
 
-#: Left ends of the four sliders (normalised window coordinates) and their length.
-SLIDER_SPOTS = ((0.52, 0.655), (0.64, 0.655), (0.52, 0.59), (0.64, 0.59))
-SLIDER_LENGTH = 0.1
+#: Left ends of the four sliders (normalised window coordinates) and their length: a 2 x 2
+#: block over the lower left of the 3D view, shown on demand (``sliders`` button, ``w``),
+#: on a white backdrop.
+SLIDER_SPOTS = ((0.03, 0.165), (0.26, 0.165), (0.03, 0.085), (0.26, 0.085))
+SLIDER_LENGTH = 0.19
+BACKDROP = (0.008, 0.03, 0.475, 0.225)
 
 
 def rect_contains(rect, xy) -> bool:
@@ -262,25 +299,32 @@ class Controls:
         rw.AddRenderer(self.overlay)
         self.hot: list = []  # (action, text actor)
         self.sliders: dict = {}
+        self.sliders_on = False
+        self.backdrop = None
 
     # ---------------------------------------------------------------- drawing
-    def draw(self, state, member_names: Sequence, disabled) -> None:
+    def draw(self, state, member_names: Sequence, disabled, recording: bool = False) -> None:
         """(Re)draw the button strip and the member chips for ``state``."""
         from .scene_view import FONT_SMALL, OKABE_ITO, pt
 
         for _, a in self.hot:  # only our chips: the sliders' representations live here too
             self.overlay.RemoveViewProp(a)
         self.hot = []
-        x = STRIP_X0
-        for action, label in BUTTONS:
-            if action == "play":
-                label = "pause" if state.playing else "play"
-            if action == "coverage" and state.coverage:
-                label = "coverage: on"
-            a = self._chip(f" {label} ", x, STRIP_Y, pt(FONT_SMALL),
-                           background=OKABE_ITO["blue"], colour="white")
-            self.hot.append((action, a))
-            x += self._width(a) + STRIP_GAP
+        for row, y in zip(BUTTONS, STRIP_Y, strict=True):
+            x = STRIP_X0
+            for action, label in row:
+                if action == "play":
+                    label = "pause" if state.playing else "play"
+                elif action == "coverage" and state.coverage:
+                    label = "coverage: on"
+                elif action == "record" and recording:
+                    label = "stop rec"
+                elif action == "sliders" and self.sliders_on:
+                    label = "hide sliders"
+                a = self._chip(f" {label} ", x, y, pt(FONT_SMALL),
+                               background=OKABE_ITO["blue"], colour="white")
+                self.hot.append((action, a))
+                x += self._width(a) + STRIP_GAP
         # Member chips (MIS sets and presets): upper right of the 3D view, one per technique.
         if len(member_names) > 1:
             y = 0.80
@@ -357,10 +401,49 @@ class Controls:
                  ("g", "HG g", RANGES["g"], params.g, "%.2f"),
                  ("photons", "log2 N", tuple(math.log2(v) for v in RANGES["photons"]),
                   math.log2(params.photons), "%.1f")]
-        # A 2 x 2 block in the free band under the render image (above the stage panel).
+        self.backdrop = self._backdrop(BACKDROP)
         for (key, title, rng, value, fmt), (x, y) in zip(specs, SLIDER_SPOTS, strict=True):
             self.sliders[key] = self._slider(key, title, rng, value, fmt, (x, y),
                                              (x + SLIDER_LENGTH, y))
+        self.show_sliders(self.sliders_on)
+
+    def show_sliders(self, on: bool) -> None:
+        """Show or hide the slider block (hidden, it takes no clicks)."""
+        self.sliders_on = bool(on)
+        for w in self.sliders.values():
+            # Disabling forgets the widget's renderer; enabling would then pick the renderer
+            # under the last event (drawn below the overlay's backdrop).
+            w.SetCurrentRenderer(self.overlay)
+            w.SetEnabled(int(self.sliders_on))
+        if self.backdrop is not None:
+            self.backdrop.SetVisibility(self.sliders_on)
+
+    def _backdrop(self, rect):
+        """A white rectangle (normalised window coordinates) behind the sliders."""
+        from vtkmodules.vtkCommonCore import vtkPoints
+        from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+        from vtkmodules.vtkRenderingCore import vtkActor2D, vtkCoordinate, vtkPolyDataMapper2D
+
+        x0, y0, x1, y1 = rect
+        pts = vtkPoints()
+        for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
+            pts.InsertNextPoint(x, y, 0.0)
+        cells = vtkCellArray()
+        cells.InsertNextCell(4, [0, 1, 2, 3])
+        poly = vtkPolyData()
+        poly.SetPoints(pts)
+        poly.SetPolys(cells)
+        coord = vtkCoordinate()
+        coord.SetCoordinateSystemToNormalizedViewport()
+        mapper = vtkPolyDataMapper2D()
+        mapper.SetInputData(poly)
+        mapper.SetTransformCoordinate(coord)
+        actor = vtkActor2D()
+        actor.SetMapper(mapper)
+        actor.GetProperty().SetColor(1.0, 1.0, 1.0)
+        actor.GetProperty().SetOpacity(0.92)
+        self.overlay.AddViewProp(actor)
+        return actor
 
     def _slider(self, key, title, rng, value, fmt, a, b):
         from vtkmodules.vtkInteractionWidgets import vtkSliderRepresentation2D, vtkSliderWidget

@@ -467,10 +467,18 @@ def coverage_mesh(mask: np.ndarray):
     return cells, pv.PolyData(pts, lines=lines)
 
 
-def add_coverage(plotter: pv.Plotter, mask: np.ndarray) -> int:
+def add_coverage(plotter: pv.Plotter, mask: np.ndarray, *, origin=(0.0, 0.0),
+                 spacing: float = 1.0) -> int:
     """Tint the covered pixels on the current image panel and outline the region; returns
-    the number of covered pixels."""
+    the number of covered pixels. ``origin``/``spacing`` place the image (its lower-left
+    corner and cell size) when it is a scaled tile."""
     cells, outline = coverage_mesh(mask)
+    if origin != (0.0, 0.0) or spacing != 1.0:
+        move = (float(origin[0]), float(origin[1]), 0.0)
+        cells = cells.scale((spacing, spacing, 1.0)).translate(move) if cells.n_cells \
+            else cells
+        outline = outline.scale((spacing, spacing, 1.0)).translate(move) \
+            if outline.n_points else outline
     if cells.n_cells:
         plotter.add_mesh(cells, color=COVERAGE_TINT, opacity=0.55, lighting=False,
                          name="coverage-cells", reset_camera=False)

@@ -61,11 +61,14 @@ HELP = """keys
   x X a A  sigma_s / sigma_a down / up
   g G k K  HG g / photons down / up
   + / -    more / fewer photon subpaths
+  m        panels: render/techniques/bounces
+  v        record a GIF (v again: stop)
+  w        show / hide the sliders
   h        this help      q  quit
 mouse
   click render/variance: pick the pixel
   right click a primitive: its coverage
-  buttons below, sliders under the render"""
+  buttons at the bottom right"""
 
 _GRID = dict(shape=(2, 3), col_weights=[4, 2, 2], row_weights=[9, 11],
              groups=[(np.s_[:], 0), (1, np.s_[1:])])
@@ -104,6 +107,14 @@ class ViewState:
     disabled: frozenset = frozenset()
     #: The scene as loaded (the medium sliders change copies of it).
     base_scene: object = None
+    #: The window's progressive renderer (``ui.progressive.Progressive``) and its panels
+    #: (``ui.image_panels.PanelView``); None: the panels show :attr:`acc` (screenshots).
+    prog: object = None
+    panels: object = None
+    #: Image-panel mode (``image_panels.MODES``, the ``m`` key) and the estimators shown
+    #: beside the inspected one (``--estimators A,B``: B is extra).
+    mode: str = "render"
+    extra_specs: tuple = ()
 
     @property
     def stage(self) -> str:
@@ -113,8 +124,11 @@ class ViewState:
 def build_state(scene_path: str, estimator: str = "planes", seed: int = 0, pixel_xy=None,
                 photons: int = DEFAULT_PHOTONS, passes: int = DEFAULT_PASSES, stage="trace",
                 hit: int | None = None, pass_index: int = 0,
-                coverage: bool = False) -> ViewState:
+                coverage: bool = False, render_passes: bool = True) -> ViewState:
     """Load the scene, render ``passes`` passes and inspect the pixel in pass ``pass_index``.
+
+    ``render_passes=False`` leaves the accumulator empty (the window's progressive worker
+    renders the passes).
 
     Raises ``SceneError`` / ``UnknownTechnique`` / ``ValueError`` for bad input.
     """
@@ -131,10 +145,11 @@ def build_state(scene_path: str, estimator: str = "planes", seed: int = 0, pixel
                          f"(--passes {passes})")
     settings = RenderSettings(photons=int(photons), spp=1)
     inspection = inspect_pixel(scene, est, seed, int(pass_index), pixel_xy, settings)
-    res = render(scene, est, settings, passes=passes, seed=seed)
+    acc = (render(scene, est, settings, passes=passes, seed=seed).accumulator if render_passes
+           else Welford.empty((cam.height, cam.width, 3)))
     st = ViewState(scene_path=str(scene_path), scene=scene, estimator=est, seed=int(seed),
                    settings=settings, pixel_xy=tuple(int(v) for v in pixel_xy),
-                   acc=res.accumulator, inspection=inspection,
+                   acc=acc, inspection=inspection,
                    initial_passes=passes, pass_index=int(pass_index),
                    base_spec=str(estimator), base_scene=scene)
     st.stepper.go(stage)
@@ -344,8 +359,8 @@ def _compose_panel(plotter: pv.Plotter, state: ViewState) -> None:
     plotter.renderer.clear_actors()
     plotter.renderer.set_background("#f2f2f2")
     add_text(plotter, panel_text(state), 0.02, 0.97, FONT_SMALL, mono=True, name="panel")
-    if state.message:  # just above the window's button strip (ui.controls)
-        add_text(plotter, state.message, 0.02, 0.115, FONT_SMALL, name="message",
+    if state.message:  # just above the window's two rows of buttons (ui.controls)
+        add_text(plotter, state.message, 0.02, 0.19, FONT_SMALL, name="message",
                  colour=scene_view.OKABE_ITO["vermillion"])
 
 
@@ -355,6 +370,9 @@ def _clear_bars(plotter: pv.Plotter) -> None:
 
 
 def _compose_images(plotter: pv.Plotter, state: ViewState) -> None:
+    if state.prog is not None:
+        _compose_progressive(plotter, state)
+        return
     plotter.subplot(*_RENDER)
     plotter.renderer.clear_actors()
     plotter.renderer.set_background("white")
@@ -373,6 +391,23 @@ def _compose_images(plotter: pv.Plotter, state: ViewState) -> None:
     title = ("variance per pass (log scale)" if state.acc.n > 1
              else "variance: needs 2+ passes")
     image_panels.add_variance_panel(plotter, var, state.pixel_xy, title)
+
+
+def _compose_progressive(plotter: pv.Plotter, state: ViewState) -> None:
+    """The progressive panels (every estimator side by side, or a breakdown mode) and, on the
+    inspected estimator's render tile, the coverage overlay."""
+    state.panels.draw(plotter, [_RENDER, _VARIANCE], state.prog, state.mode, state.pixel_xy)
+    plotter.subplot(*_RENDER)
+    ren = plotter.renderer
+    for name in ("coverage-cells", "coverage-outline"):
+        if name in ren.actors:
+            plotter.remove_actor(name, render=False)
+    cam = state.scene.camera
+    tiles = controls.image_tiles(ren, cam.width, cam.height)
+    if state.coverage and state.coverage_mask is not None and tiles:
+        _, origin, spacing = tiles[0]
+        primitives_view.add_coverage(plotter, state.coverage_mask, origin=origin,
+                                     spacing=spacing)
 
 
 def make_plotter(size=DEFAULT_SIZE, off_screen: bool = False) -> pv.Plotter:
@@ -434,25 +469,56 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
 #: ``click:variance:X,Y`` (a real mouse click on that image pixel's centre), ``shot:PATH.png``,
 #: ``wait`` or ``quit``.
 SCRIPT_ENV = "PSURF_WINDOW_SCRIPT"
+#: Environment variable ``W,H`` overriding the window size (a quicker scripted test).
+SIZE_ENV = "PSURF_WINDOW_SIZE"
 
 
-def run(scene_path: str, estimator: str = "planes", *, seed: int = 0, pixel_xy=None,
-        photons: int = DEFAULT_PHOTONS, passes: int = DEFAULT_PASSES,
-        size=DEFAULT_SIZE) -> None:
+def panel_specs(state: ViewState) -> list:
+    """Estimator specs of the image panels: the inspected estimator first, then the extras."""
+    return [state.estimator.spec, *state.extra_specs]
+
+
+def attach_progressive(state: ViewState, workers: int = 1, breakdown: bool = True) -> None:
+    """Render the panels progressively (``ui.progressive``: ``workers`` background processes,
+    0 = in the timer tick) into ``image_panels.PanelView`` tiles; starts playing."""
+    from .image_panels import PanelView
+    from .progressive import Progressive
+
+    state.prog = Progressive(state.scene, panel_specs(state), state.settings, seed=state.seed,
+                             workers=workers, breakdown=breakdown)
+    state.panels = PanelView()
+    state.acc = state.prog.runs[0].acc
+    state.playing = True
+
+
+def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: int = 0,
+        pixel_xy=None, photons: int = DEFAULT_PHOTONS, size=DEFAULT_SIZE,
+        workers: int = 1) -> None:
     """Open the interactive window on ``scene_path`` (blocks until it is closed).
+
+    ``estimators`` (specs) are rendered side by side at equal time in a background process;
+    the first is the one the stages inspect (default: ``[estimator]``).
 
     With :data:`SCRIPT_ENV` set, its steps are played through the window's own event path
     (synthetic key presses and mouse clicks), one per timer tick, and ``quit`` closes it.
     """
-    state = build_state(scene_path, estimator, seed, pixel_xy, photons, passes)
+    specs = list(estimators) if estimators else [estimator]
+    state = build_state(scene_path, specs[0], seed, pixel_xy, photons, render_passes=False)
+    state.extra_specs = tuple(specs[1:])
+    attach_progressive(state, workers=workers)
+    if os.environ.get(SIZE_ENV):
+        size = tuple(int(v) for v in os.environ[SIZE_ENV].split(","))
     plotter = make_plotter(size)
-    compose(plotter, state)
     app = App(plotter, state)
-    app.bind()
-    script = os.environ.get(SCRIPT_ENV)
-    if script:
-        app.script = [step.strip() for step in script.split(";") if step.strip()]
-    plotter.show(title="psurf - photon surfaces, step by step")
+    try:
+        compose(plotter, state)
+        app.bind()
+        script = os.environ.get(SCRIPT_ENV)
+        if script:
+            app.script = [step.strip() for step in script.split(";") if step.strip()]
+        plotter.show(title="psurf - photon surfaces, step by step")
+    finally:
+        app.close()
 
 
 class App:
@@ -479,6 +545,8 @@ class App:
         self.controls = None
         self.script: list = []
         self._tags: dict = {}
+        self.recorder = None
+        self._t0 = time.perf_counter()
 
     @property
     def members(self) -> tuple:
@@ -506,7 +574,8 @@ class App:
             "bracketright": lambda: self.step_hit(1), "plus": lambda: self.paths(2.0),
             "equal": lambda: self.paths(2.0), "minus": lambda: self.paths(0.5),
             "comma": lambda: self.step_pass(-1), "period": lambda: self.step_pass(1),
-            "c": self.toggle_coverage, "q": self.quit,
+            "c": self.toggle_coverage, "q": self.quit, "m": self.next_mode,
+            "v": self.toggle_record, "w": self.toggle_sliders,
             "x": lambda: self.nudge("sigma_s", -1), "X": lambda: self.nudge("sigma_s", 1),
             "a": lambda: self.nudge("sigma_a", -1), "A": lambda: self.nudge("sigma_a", 1),
             "g": lambda: self.nudge("g", -1), "G": lambda: self.nudge("g", 1),
@@ -529,7 +598,9 @@ class App:
         return {"previous": self.previous, "next": self.next, "play": self.toggle_play,
                 "reset": self.reset, "coverage": self.toggle_coverage,
                 "pass-": lambda: self.step_pass(-1), "pass+": lambda: self.step_pass(1),
-                "save": self.save, "help": self.toggle_help, "member": self.toggle_member}
+                "save": self.save, "help": self.toggle_help, "member": self.toggle_member,
+                "mode": self.next_mode, "record": self.toggle_record,
+                "sliders": self.toggle_sliders}
 
     def _on_left(self, obj, _event) -> None:
         if self.click(obj.GetEventPosition()) in ("button", "pixel"):
@@ -548,7 +619,8 @@ class App:
         try:
             compose(self.p, self.s, keep_camera=keep_camera)
             if self.controls is not None:
-                self.controls.draw(self.s, self.members, self.s.disabled)
+                self.controls.draw(self.s, self.members, self.s.disabled,
+                                   recording=self.recorder is not None)
         finally:
             self.p.suppress_rendering = held
         self.p.render()
@@ -580,9 +652,10 @@ class App:
         (``"render"`` or ``"variance"``): where a click picks it."""
         ren = self.p.renderers[self._panel_index(panel)]
         cam = ren.GetActiveCamera()
-        h = self.s.scene.camera.height
+        w, h = self.s.scene.camera.width, self.s.scene.camera.height
+        _, origin, spacing = controls.image_tiles(ren, w, h)[0]
         fx, fy, _ = cam.GetFocalPoint()
-        return controls.panel_to_display((pixel_xy[0] + 0.5, h - pixel_xy[1] - 0.5),
+        return controls.panel_to_display(controls.pixel_centre(pixel_xy, h, origin, spacing),
                                          self.p.window_size, ren.GetViewport(), (fx, fy),
                                          cam.GetParallelScale())
 
@@ -629,17 +702,28 @@ class App:
         self.redraw()
 
     def toggle_play(self) -> None:
-        self.s.playing = not self.s.playing
-        self.s.message = "playing: one pass per tick" if self.s.playing else "paused"
+        s = self.s
+        s.playing = not s.playing
+        if s.prog is not None:
+            (s.prog.resume if s.playing else s.prog.pause)()
+            s.message = "playing (background worker)" if s.playing else "paused"
+        else:
+            s.message = "playing: one pass per tick" if s.playing else "paused"
         self.redraw()
 
     def restart(self, message: str) -> None:
-        """Render the initial passes again (scene, estimator or photons changed) and inspect
-        the pixel anew."""
+        """Start the render over (scene, estimator or photons changed): the progressive
+        worker gets the new job, or (no worker) the initial passes are rendered here; then the
+        pixel is inspected anew."""
         s = self.s
-        s.acc = render(s.scene, s.estimator, s.settings, passes=s.initial_passes,
-                       seed=s.seed).accumulator
-        s.pass_index = min(s.pass_index, s.acc.n - 1)
+        if s.prog is not None:
+            s.prog.reset(scene=s.scene, estimators=panel_specs(s), settings=s.settings)
+            s.acc = s.prog.runs[0].acc
+            s.pass_index = 0
+        else:
+            s.acc = render(s.scene, s.estimator, s.settings, passes=s.initial_passes,
+                           seed=s.seed).accumulator
+            s.pass_index = min(s.pass_index, s.acc.n - 1)
         reinspect(s)
         s.message = message
 
@@ -689,7 +773,7 @@ class App:
     def step_pass(self, d: int) -> None:
         """Inspect the previous / next pass (of those the image panels include)."""
         s = self.s
-        k = min(max(s.pass_index + d, 0), s.acc.n - 1)
+        k = min(max(s.pass_index + d, 0), max(s.acc.n - 1, 0))
         if k != s.pass_index:
             s.pass_index = k
             reinspect(s)
@@ -772,6 +856,59 @@ class App:
         if self.pending.pending:
             self.apply_params(self.pending.due(float("inf")))
 
+    def toggle_sliders(self) -> None:
+        """Show / hide the medium and photon sliders (over the lower left of the 3D view)."""
+        if self.controls is not None:
+            self.controls.show_sliders(not self.controls.sliders_on)
+            self.s.message = ("sliders: changes apply when the slider rests"
+                              if self.controls.sliders_on else "")
+        self.redraw()
+
+    def next_mode(self) -> None:
+        """Cycle the image-panel modes (render / techniques / bounces)."""
+        from .image_panels import MODE_HELP, next_mode
+
+        s = self.s
+        if s.prog is None:
+            s.message = "panel modes need the progressive renderer (the window)"
+        else:
+            s.mode = next_mode(s.mode)
+            s.message = f"panels: {s.mode}: {MODE_HELP[s.mode]}"
+        self.redraw()
+
+    def toggle_record(self) -> None:
+        """Start / stop recording the window (a GIF of every new progressive frame, written
+        with ``ui.record_cli``'s atomic animation writer)."""
+        s = self.s
+        if self.recorder is None:
+            from .record_cli import _Animation
+
+            out = os.path.abspath(f"psurf-record-{time.strftime('%Y%m%d-%H%M%S')}.gif")
+            self.recorder = _Animation(out, ".gif", fps=5.0)
+            s.message = f"recording {out} (v stops)"
+            self.redraw()
+            self._record_frame()
+        else:
+            rec, self.recorder = self.recorder, None
+            rec.commit()
+            s.message = f"saved {rec.frames} frames to {rec.out}"
+            self.redraw()
+
+    def _record_frame(self) -> None:
+        if self.recorder is not None:
+            self.recorder.add(self.p.screenshot(None, return_img=True))
+
+    def close(self) -> None:
+        """Window closed: finish a recording and stop the progressive worker."""
+        if self.recorder is not None:
+            rec, self.recorder = self.recorder, None
+            rec.commit()
+            print(f"psurf: saved {rec.frames} frames to {rec.out}", flush=True)
+        if self.s.prog is not None:
+            self.s.prog.close()
+        if self.controls is not None:
+            self.controls.close()
+
     # ---------------------------------------------------------------- timer
     def tick(self, _step=None) -> None:
         if self.script:
@@ -781,18 +918,40 @@ class App:
             self.apply_params(params)
             return
         s = self.s
+        if s.prog is not None:
+            # Non-blocking: merges what the worker finished (at most POLL_BUDGET seconds).
+            if s.prog.poll():
+                s.acc = s.prog.runs[0].acc
+                if s.prog.errors:
+                    s.message = f"render error: {s.prog.errors[0].splitlines()[-1]}"
+                self._frame()
+            return
         if not s.playing:
             return
         s.acc.add(render_pass(s.scene, s.estimator, s.acc.n, s.seed, s.settings))
         s.message = f"playing: {s.acc.n} passes"
-        _compose_images(self.p, s)  # the 3D view (and its camera) stays as it is
-        _compose_panel(self.p, s)
+        self._frame()
+
+    def _frame(self) -> None:
+        """Redraw the image panels and the stage panel (the 3D view and its camera stay)."""
+        held = self.p.suppress_rendering
+        self.p.suppress_rendering = True
+        try:
+            _compose_images(self.p, self.s)
+            _compose_panel(self.p, self.s)
+        finally:
+            self.p.suppress_rendering = held
         self.p.render()
+        self._record_frame()
 
     def _script_step(self, step: str) -> None:
         """One step of :data:`SCRIPT_ENV`, sent through the interactor like a user's."""
         ii = self.p.iren.interactor
         if step == "wait":
+            return
+        if step.startswith("passes>="):  # hold the script until the worker sent N passes
+            if self.s.acc.n < int(step[8:]):
+                self.script.insert(0, step)
             return
         if step == "quit":
             print("window: quit", flush=True)
@@ -818,4 +977,5 @@ class App:
         ii.KeyPressEvent()
         ii.KeyReleaseEvent()
         print(f"window: key {step}: stage {self.s.stage}, pixel {self.s.pixel_xy}, "
-              f"pass {self.s.pass_index}, passes {self.s.acc.n}", flush=True)
+              f"pass {self.s.pass_index}, passes {self.s.acc.n}  "
+              f"[{time.perf_counter() - self._t0:.1f} s]", flush=True)
