@@ -77,6 +77,9 @@ __all__ = ["EstimatorRun", "Progressive", "Job"]
 QUEUE_SIZE = 6
 #: Seconds ``poll`` spends at most unpacking results (keeps the UI frame short).
 POLL_BUDGET = 0.03
+#: Niceness added to worker processes: on a busy machine the UI's frames (software OpenGL
+#: wants every core) come before background passes.
+WORKER_NICE = 10
 
 
 @dataclass(frozen=True)
@@ -192,6 +195,12 @@ def _worker_main(worker_id: int, n_workers: int, control, results) -> None:
     ``("error", gen, text)``.
     """
     engine, gen, paused = None, -1, False
+    try:
+        import os
+
+        os.nice(WORKER_NICE)
+    except (AttributeError, OSError):  # not POSIX, or not allowed: run at normal priority
+        pass
 
     def handle(msg) -> bool:
         """Apply a control message; False to stop."""
