@@ -138,3 +138,14 @@ def test_unweighted_technique_estimates_its_bin():
         assert se < 0.03 * mis.mean(), (se, mis.mean())
         assert abs(d.mean()) < 4 * se, (d.mean(), se)
     assert np.isclose(acc.unweighted_k("plane-t1t2", 2).mean(), unw.mean(), rtol=1e-12)
+
+
+def test_breakdown_never_imports_the_ui():
+    import subprocess
+    import sys
+
+    code = ("import sys, psurf_core.breakdown;"
+            "bad = [m for m in sys.modules if m.split('.')[0] in ('pyvista', 'vtk', 'vtkmodules',"
+            " 'ui')]; print(bad); sys.exit(1 if bad else 0)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout + r.stderr
