@@ -125,6 +125,8 @@ def _cli(argv, capsys):
     (["--pixel", "1,1", "--estimator", "nope"], "unknown estimator"),
     (["--pixel", "1,1", "--estimator", "reference"], "photon estimator"),
     (["--pixel", "1,1", "--passes", "2", "--pass", "2"], "passes 0..1"),
+    (["--pixel", "1,1", "--estimators", "planes,nope"], "unknown estimator"),
+    (["--pixel", "1,1", "--estimators", "reference,planes"], "--estimators reference"),
 ])
 def test_cli_errors_are_one_line(extra, message, capsys, tmp_path):
     argv = ["screenshot", str(ROOT / "scenes" / "point.toml"), "--stage", "trace",

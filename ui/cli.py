@@ -88,6 +88,11 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
                         "table (default 0)")
     p.add_argument("--pass", dest="pass_index", type=_nonneg, default=0, metavar="N",
                    help="the inspected pass, 0 <= N < --passes (default: 0)")
+    p.add_argument("--estimators", default=None, metavar="A,B",
+                   help="image panels: these estimators side by side, the first inspected "
+                        "(replaces --estimator; each gets --passes passes)")
+    p.add_argument("--mode", default="render", choices=("render", "techniques", "bounces"),
+                   help="image-panel mode (the window's m key; default: render)")
     p.add_argument("--coverage", action="store_true",
                    help="tint the pixels the selected hit's primitive contributes to "
                         "(primitive -> pixels) on the render panel")
@@ -115,13 +120,22 @@ def run_screenshot(args) -> int:
         return _fail(f"--out {out}: directory {d} does not exist")
     if os.path.isdir(out):
         return _fail(f"--out {out}: is a directory")
+    specs = [args.estimator]
+    if args.estimators is not None:
+        specs = [e.strip() for e in args.estimators.split(",")]
+        if any(not e for e in specs):
+            return _fail(f"--estimators {args.estimators}: must be a comma-separated list of "
+                         "estimator specs")
     try:
         scene = load_scene(args.scene)
-        est = parse_estimator(args.estimator, scene)
+        est = parse_estimator(specs[0], scene)
+        for extra in specs[1:]:
+            parse_estimator(extra, scene)
     except (SceneError, UnknownTechnique) as e:
         return _fail(str(e))
     if est.reference:
-        return _fail("--estimator reference: the stages need a photon estimator "
+        flag = "--estimators" if args.estimators is not None else "--estimator"
+        return _fail(f"{flag} reference: the stages need a photon estimator "
                      "(the path tracer has no photons or primitives)")
     cam = scene.camera
     x, y = args.pixel
@@ -137,9 +151,10 @@ def run_screenshot(args) -> int:
         pyvista.OFF_SCREEN = True
         from ui.window import screenshot
 
-        screenshot(args.scene, args.stage, (x, y), args.estimator, args.seed, out,
+        screenshot(args.scene, args.stage, (x, y), specs[0], args.seed, out,
                    size=tuple(args.size), passes=args.passes, hit=args.hit,
-                   photons=args.photons, pass_index=args.pass_index, coverage=args.coverage)
+                   photons=args.photons, pass_index=args.pass_index, coverage=args.coverage,
+                   estimators=specs[1:], mode=args.mode)
     except (SceneError, UnknownTechnique, ValueError) as e:
         return _fail(str(e))
     except (ImportError, RuntimeError) as e:

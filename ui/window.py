@@ -422,7 +422,7 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
                out: str = "shot.png", size=DEFAULT_SIZE, passes: int = DEFAULT_PASSES,
                hit: int | None = None, photons: int = DEFAULT_PHOTONS,
                n_paths: int = primitives_view.DEFAULT_PATHS, pass_index: int = 0,
-               coverage: bool = False) -> np.ndarray:
+               coverage: bool = False, estimators=(), mode: str = "render") -> np.ndarray:
     """Render what the window shows at ``stage`` off-screen and write it to ``out`` (PNG).
 
     Parameters
@@ -440,6 +440,11 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
     coverage : bool
         Tint the pixels the selected hit's primitive contributes to on the render panel
         (the window's ``c``).
+    estimators : sequence of str
+        Estimators shown beside ``estimator`` in the image panels (the window's
+        ``--estimators``); each gets ``passes`` passes here (the window: equal time).
+    mode : {'render', 'techniques', 'bounces'}
+        Image-panel mode (the window's ``m``).
 
     Returns
     -------
@@ -447,15 +452,26 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
         The image written.
     """
     stage_index(stage)
+    from .image_panels import MODES
+
+    if mode not in MODES:
+        raise ValueError(f"unknown panel mode '{mode}' (expected one of: {', '.join(MODES)})")
     state = build_state(scene_path, estimator, seed, pixel_xy, photons, passes, stage, hit,
-                        pass_index=pass_index, coverage=coverage)
+                        pass_index=pass_index, coverage=coverage, render_passes=False)
     state.n_paths = int(n_paths)
+    state.extra_specs, state.mode = tuple(estimators), mode
+    # The window's panels, rendered here pass by pass (workers=0: deterministic, and
+    # bit-identical to a serial render of the same seed).
+    attach_progressive(state, workers=0, breakdown=(mode != "render"))
+    state.prog.run(passes=state.initial_passes)
+    state.acc = state.prog.runs[0].acc
     plotter = make_plotter(size, off_screen=True)
     try:
         compose(plotter, state)
         img = plotter.screenshot(None, return_img=True)
     finally:
         plotter.close()
+        state.prog.close()
     import imageio.v3 as iio
 
     d = os.path.dirname(os.path.abspath(out))
