@@ -148,3 +148,24 @@ def test_panel_view_updates_in_place_and_rebuilds_after_a_clear():
 def view_clim(view):
     actor = view._parts["ip1"]["tiles"][0][1]
     return actor.mapper.GetScalarRange()
+
+
+def test_moving_the_pixel_moves_the_outlines_without_a_rebuild():
+    from ui.image_panels import PanelView
+
+    scene = load_scene(str(ROOT / "scenes" / "point.toml"))
+    prog = Progressive(scene, ["planes"], RenderSettings(photons=50), workers=0)
+    prog.run(passes=1)
+    pl = pv.Plotter(window_size=[640, 320], off_screen=True, shape=(1, 2), border=False)
+    try:
+        view = PanelView()
+        view.draw(pl, [(0, 0), (0, 1)], prog, "render", (3, 4))
+        mesh, _ = view._parts["ip0"]["outlines"][0]
+        before = np.array(mesh.points)
+        view.draw(pl, [(0, 0), (0, 1)], prog, "render", (5, 4))
+        assert view._parts["ip0"]["outlines"][0][0] is mesh
+        step = np.array(mesh.points) - before
+        assert np.allclose(step[:, 1:], 0) and np.allclose(step[:, 0], step[0, 0])
+        assert step[0, 0] > 0  # two pixels to the right
+    finally:
+        pl.close()

@@ -322,6 +322,13 @@ def _label(plotter, text: str, x: float, y: float, size: float, *, name: str,
     return actor
 
 
+def _outline_points(pixel_xy, height: int, s: float, x0: float, y0: float) -> np.ndarray:
+    """(4, 3) corners of the outline of pixel ``pixel_xy`` on a tile at ``(x0, y0)`` drawn
+    ``s`` viewport pixels per image pixel."""
+    pts = np.array(pixel_outline(pixel_xy, height, 0.6).points, dtype=float)
+    return pts * [s, s, 1.0] + [x0, y0, 0.0]
+
+
 def _fit(text: str, width_px: float) -> str:
     """Shorten every line of ``text`` to about ``width_px`` pixels at the tile font."""
     n = max(4, int(width_px / (0.55 * pt(FONT_SMALL))))
@@ -394,7 +401,7 @@ class PanelView:
         h, w = area.tiles[0].values.shape if area.tiles and area.tiles[0].values is not None \
             else (area.tiles[0].rgb.shape[:2] if area.tiles else (1, 1))
         key = (tag, id(ren), tuple((t.rgb is None, t.cmap, t.log, t.pixel) for t in area.tiles),
-               area.rows, area.bar, round(vw), round(vh), (h, w), lines, pixel_xy)
+               area.rows, area.bar, round(vw), round(vh), (h, w), lines, pixel_xy is None)
         parts = self._parts.get(tag)
         if self._key.get(tag) != key or parts is None or not self._alive(plotter, ren, parts):
             parts = self._build(plotter, tag, area, vw, vh, top_px, bottom_px, label_px,
@@ -415,6 +422,9 @@ class PanelView:
                 actor.mapper.SetScalarRange(lo, hi)
                 actor.mapper.lookup_table.SetRange(lo, hi)
             grid.Modified()
+        if pixel_xy is not None:  # a moved pixel moves the outlines (no rebuild)
+            for mesh, (x0, y0, sc) in parts["outlines"]:
+                mesh.points = _outline_points(pixel_xy, h, sc, x0, y0)
 
     @staticmethod
     def _alive(plotter, ren, parts) -> bool:
@@ -436,7 +446,7 @@ class PanelView:
         usable_h = vh - top_px - bottom_px
         rows, cols, s = _grid_shape(max(n, 1), w, h, vw, usable_h, label_px, area.rows)
         s = max(s, 1e-3)
-        names, fits = [], []
+        names, fits, outlines = [], [], []
         header = _label(plotter, _fit(area.header, 0.98 * vw), 0.5, 1.0 - 4 / vh, FONT_SMALL,
                           name=f"{tag}-header", align="center", bold=True)
         names.append(f"{tag}-header")
@@ -479,8 +489,9 @@ class PanelView:
             fits.append(w * s * 1.05)
             names.append(f"{name}-title")
             if tile.pixel and pixel_xy is not None:
-                outline = pixel_outline(pixel_xy, h, 0.6).scale((s, s, 1.0)).translate(
-                    (px0, py0, 0.0))
+                outline = pixel_outline(pixel_xy, h, 0.6)
+                outline.points = _outline_points(pixel_xy, h, s, px0, py0)
+                outlines.append((outline, (px0, py0, s)))
                 plotter.add_mesh(outline, color=OKABE_ITO["vermillion"], line_width=px(3),
                                  name=f"{name}-pixel", reset_camera=False)
                 names.append(f"{name}-pixel")
@@ -501,6 +512,7 @@ class PanelView:
             cam.parallel_scale = view[2]
         ren.ResetCameraClippingRange()
         return {"header": header, "tiles": tiles, "names": names, "fits": fits,
+                "outlines": outlines,
                 "bar": area.bar if bar_done else None}
 
 
