@@ -14,8 +14,10 @@ Refreshing the baselines (after an intended change to what a stage shows)::
 
     PSURF_UPDATE_BASELINES=1 .venv/bin/python -m pytest tests/test_ui_screenshots.py
 
-rewrites every baseline PNG (the tests then pass); look at the new pictures before committing
-them. Without a display VTK renders through EGL or OSMesa (``pyvista.OFF_SCREEN = True``).
+rewrites every baseline PNG and the stage texts ``<scene>_stages.txt`` (the numbers each
+stage shows, compared exactly) (the tests then pass); look at the new pictures and diff the
+texts before committing them. Without a display VTK renders through EGL or OSMesa
+(``pyvista.OFF_SCREEN = True``).
 """
 
 from __future__ import annotations
@@ -71,6 +73,28 @@ def test_stage_matches_baseline(scene, stage, tmp_path):
     ssim = structural_similarity(ref, got, channel_axis=2, data_range=255)
     assert ssim >= SSIM_MIN, (f"{scene}/{stage}: SSIM {ssim:.3f} < {SSIM_MIN} against "
                               f"{baseline} (new picture: {out})")
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_stage_texts_match_baseline(scene):
+    """The stage panel's text (the numbers: hit tables, sums, weights) of every stage, exactly:
+    SSIM barely notices a changed digit in a table, this does. Refreshed with the PNGs."""
+    from ui.window import build_state, panel_text
+
+    shot = {k: v for k, v in SHOT.items() if k != "size"}
+    state = build_state(str(ROOT / "scenes" / f"{scene}.toml"), render_passes=False, **shot)
+    texts = []
+    for stage in STAGES:
+        state.stepper.go(stage)
+        texts.append(f"== {stage}\n{panel_text(state)}")
+    got = "\n".join(texts) + "\n"
+    baseline = BASELINES / f"{scene}_stages.txt"
+    if UPDATE:
+        baseline.write_text(got)
+        return
+    if not baseline.exists():
+        pytest.fail(f"missing baseline {baseline}; create it with PSURF_UPDATE_BASELINES=1")
+    assert got == baseline.read_text(), f"{scene}: stage texts differ from {baseline}"
 
 
 def test_coverage_and_pass_match_baseline(tmp_path):
