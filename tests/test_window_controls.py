@@ -245,6 +245,27 @@ def test_member_chip_toggles_and_keeps_one(window):
     assert s.estimator.spec == "mis:plane-t1t2+planes" and not s.disabled
 
 
+def test_slider_widgets_push_debounced_values(window):
+    """A slider's VTK interaction event reaches the debouncer (not a rebuild); the sliders
+    start hidden and ``w`` shows them."""
+    app, s = window, window.s
+    sliders = app.controls.sliders
+    assert set(sliders) == {"sigma_s", "sigma_a", "g", "photons"}
+    assert not any(w.GetEnabled() for w in sliders.values())
+    app.toggle_sliders()
+    assert all(w.GetEnabled() for w in sliders.values())
+    before = s.scene.medium.sigma_s
+    w = sliders["sigma_s"]
+    w.GetRepresentation().SetValue(1.7)
+    w.InvokeEvent("InteractionEvent")
+    assert app.pending.pending and app.params.sigma_s == pytest.approx(1.7)
+    assert s.scene.medium.sigma_s == before  # nothing rebuilt while the slider moves
+    app.flush()
+    assert s.scene.medium.sigma_s == pytest.approx(1.7)
+    app.toggle_sliders()
+    assert not any(w.GetEnabled() for w in sliders.values())
+
+
 def test_medium_changes_are_debounced_and_restart(window):
     app, s = window, window.s
     now = [100.0]

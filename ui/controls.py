@@ -26,8 +26,6 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
 # --------------------------------------------------------------------------- picking
 
 
@@ -505,9 +503,3 @@ class Controls:
             w.Off()
         self.sliders = {}
 
-
-def coverage_cells(mask: np.ndarray) -> np.ndarray:
-    """(M, 2) ``(X, Y)`` of the pixels set in an ``(H, W)`` coverage mask (row 0 at the
-    top), in row-major order."""
-    ys, xs = np.nonzero(np.asarray(mask, dtype=bool))
-    return np.column_stack([xs, ys]).astype(np.int64)
