@@ -9,6 +9,9 @@ Drives the window's composition off-screen (``ui.window.make_plotter`` + ``compo
   two image cells + ``plotter.render()`` (a "frame"; ``--every-tick`` draws on every tick).
   The panel mode cycles render -> techniques -> bounces (a third of the ticks each, so mode
   switches, i.e. rebuilds, are included). Reported: the frames, and every tick;
+* ``window-tick``: ``ui.window.App.tick`` itself with the window's own progressive wiring
+  (what its VTK timer calls: poll, and on new passes the panels, the stage text and a render);
+  frames are the ticks that merged passes; the ``m`` key (a full redraw) is timed apart;
 * ``synchronous`` (for comparison, fewer frames): what the window's timer did before, one
   ``render_pass`` in the callback + redraw of the image panels + ``plotter.render()``.
 
@@ -105,6 +108,9 @@ def run(args) -> dict:
             "by_mode": {m: _stats(v) for m, v in by_mode.items() if v},
             "passes": passes, "worker_seconds": seconds, "errors": errors}
 
+        # ---- the window itself: App.tick() (poll; on new passes redraw panels + text, render)
+        results["configs"][f"window-tick/{tag}"] = _window_ticks(args, specs, plotter, msaa)
+
         # ---- synchronous: the pass is rendered inside the timer callback
         times = []
         acc = state.acc
@@ -118,6 +124,48 @@ def run(args) -> dict:
                                                     "estimator": specs[0]}
         plotter.close()
     return results
+
+
+def _window_ticks(args, specs, old_plotter, msaa: bool) -> dict:
+    """Time ``ui.window.App.tick`` itself (what the window's VTK timer calls), with the
+    window's own progressive wiring (``attach_progressive``, one worker process); the ``m``
+    key (``App.next_mode``: a full redraw) is timed apart, a third of the way and two thirds."""
+    from ui import window
+
+    state = window.build_state(args.scene, specs[0], seed=0, photons=args.photons,
+                               render_passes=False)
+    state.extra_specs = tuple(specs[1:])
+    window.attach_progressive(state, workers=1)
+    plotter = window.make_plotter(tuple(args.size), off_screen=True)
+    if not msaa:
+        plotter.ren_win.SetMultiSamples(0)
+    app = window.App(plotter, state)
+    ticks, frames, keys = [], [], []
+    try:
+        app.bind()
+        window.compose(plotter, state)
+        plotter.screenshot(None, return_img=True)
+        time.sleep(1.0)
+        for f in range(args.frames):
+            if f in (args.frames // 3, 2 * args.frames // 3):
+                t0 = time.perf_counter()
+                app.next_mode()
+                keys.append(1000.0 * (time.perf_counter() - t0))
+            n0 = sum(state.prog.passes)
+            t0 = time.perf_counter()
+            app.tick()
+            dt = 1000.0 * (time.perf_counter() - t0)
+            ticks.append(dt)
+            if sum(state.prog.passes) > n0:
+                frames.append(dt)
+            time.sleep(max(0.0, args.period - dt / 1000.0))
+        passes = dict(zip(specs, state.prog.passes, strict=True))
+    finally:
+        app.close()
+        plotter.close()
+    out = {**(_stats(frames) if frames else {"frames": 0}), "ticks": _stats(ticks),
+           "mode_key_ms": keys, "passes": passes}
+    return out
 
 
 def main(argv=None) -> int:
@@ -143,12 +191,18 @@ def main(argv=None) -> int:
     print(f"{'configuration':28s} {'frames':>6s} {'median':>8s} {'p95':>8s} {'max':>8s} "
           f"{'>100ms':>6s}  passes")
     for name, c in res["configs"].items():
-        print(f"{name:28s} {c['frames']:6d} {c['median_ms']:7.1f}ms {c['p95_ms']:7.1f}ms "
-              f"{c['max_ms']:7.1f}ms {c['over_100ms']:6d}  {c.get('passes', '')}")
+        if c["frames"]:
+            print(f"{name:28s} {c['frames']:6d} {c['median_ms']:7.1f}ms {c['p95_ms']:7.1f}ms "
+                  f"{c['max_ms']:7.1f}ms {c['over_100ms']:6d}  {c.get('passes', '')}")
+        else:
+            print(f"{name:28s} {0:6d}  (no pass arrived)  {c.get('passes', '')}")
         if "ticks" in c:
             t = c["ticks"]
             print(f"  {'every timer tick':26s} {t['frames']:6d} {t['median_ms']:7.1f}ms "
                   f"{t['p95_ms']:7.1f}ms {t['max_ms']:7.1f}ms {t['over_100ms']:6d}")
+        if "mode_key_ms" in c:
+            print(f"  {'m key (full redraw)':26s} " + ", ".join(f"{k:.0f}ms"
+                                                               for k in c["mode_key_ms"]))
         for m, s in c.get("by_mode", {}).items():
             print(f"  {m:26s} {s['frames']:6d} {s['median_ms']:7.1f}ms {s['p95_ms']:7.1f}ms "
                   f"{s['max_ms']:7.1f}ms {s['over_100ms']:6d}")
