@@ -19,6 +19,7 @@ line from the spec's tables.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, fields, replace
 from functools import cached_property
 
@@ -166,9 +167,15 @@ class Pdfs:
         if cached is not None and cached.scene is scene:
             return cached
         self = super().__new__(cls)
-        self.rec, self.scene = rec, scene
+        # A weak reference back: a strong one would make a record <-> pdfs cycle, which only
+        # the cyclic garbage collector frees, so every chunk's arrays would pile up.
+        self._rec, self.scene = weakref.ref(rec), scene
         rec.__dict__["_pdfs"] = self
         return self
+
+    @property
+    def rec(self) -> PathRecord:
+        return self._rec()
 
     def _flight(self, t):
         st = self.scene.medium.sigma_t
