@@ -1,9 +1,17 @@
 """Which camera rays can hit which primitive: screen-space binning (Tungsten's FrustumBinner idea).
 
-Each primitive's world bounds (already clipped to the medium box) are projected to the image;
-only the rays of the pixels inside that rectangle become candidates. Candidate pairs are
-produced in chunks of at most ``max_pairs`` so memory stays bounded, and never as a full
+Each primitive's world bounds (already clipped to the medium box) are projected to the image
+as a pixel rectangle. Planar families also give a convex hull polygon
+(:attr:`~psurf_core.techniques.base.Primitives.hull`: the parallelogram, or a triangle
+holding the wedge's part in the box); it is clipped to the box and the camera's near plane,
+projected, and only the pixels of its per-row spans (within the rectangle) become candidates,
+so the pairs tested follow the primitive's true footprint. Candidate pairs are produced in
+chunks of at most ``max_pairs`` so memory stays bounded, and never as a full
 ``rays x primitives`` array.
+
+Curved families (cones, cylinders, ...) keep the rectangle: bounding them by a clipped
+circumscribed prism or pyramid halves their pairs, but in numpy the polytope clipping and
+per-row spans cost more than the intersections they save (measured; see ``benchmarks/``).
 """
 
 from __future__ import annotations
