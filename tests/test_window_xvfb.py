@@ -38,7 +38,7 @@ def test_window_opens_steps_picks_and_closes(tmp_path):
     shot1, shot2 = tmp_path / "reconstruct.png", tmp_path / "coverage.png"
     script = ";".join(["wait", "n", "n", "n", "n", "click:render:10,30", f"shot:{shot1}",
                        "p", "click:variance:40,10", "c", "passes>=2", "period", "m", "w",
-                       f"shot:{shot2}", "v", "passes>=3", "v", "q"])
+                       f"shot:{shot2}", "v", "passes+1", "v", "q"])
     # 800 x 450: the same layout (fonts scale with the height), a quarter of the pixels to
     # rasterise in software
     env = dict(os.environ, PSURF_WINDOW_SCRIPT=script, PSURF_WINDOW_SIZE="800,450",
@@ -49,17 +49,19 @@ def test_window_opens_steps_picks_and_closes(tmp_path):
          str(ROOT / "app.py"), str(ROOT / "scenes" / "area.toml")],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     out = proc.stdout
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    log = f"stdout:\n{out[-3000:]}\nstderr:\n{proc.stderr[-3000:]}"
+    assert proc.returncode == 0, log
+    assert "Traceback" not in proc.stderr, log
     lines = [ln for ln in out.splitlines() if ln.startswith("window: key")]
     stages = [ln.split("stage ")[1].split(",")[0] for ln in lines]
-    assert stages[:5] == ["create", "intersect", "evaluate", "reconstruct", "evaluate"]
-    assert "clicked render" in out and "pixel (10, 30)" in out
-    assert "clicked variance" in out and "pixel (40, 10)" in out
-    assert "key period: stage evaluate, pixel (40, 10), pass 1" in out
-    assert lines[-1].startswith("window: key q")
+    assert stages[:5] == ["create", "intersect", "evaluate", "reconstruct", "evaluate"], log
+    assert "clicked render" in out and "pixel (10, 30)" in out, log
+    assert "clicked variance" in out and "pixel (40, 10)" in out, log
+    assert "key period: stage evaluate, pixel (40, 10), pass 1" in out, log
+    assert lines[-1].startswith("window: key q"), log
     gifs = list(tmp_path.glob("psurf-record-*.gif"))  # v ... v recorded the window
-    assert len(gifs) == 1 and len(iio.imread(gifs[0], index=None)) >= 2
+    # the frame at the start and one per progressive frame (passes+1: at least one)
+    assert len(gifs) == 1 and len(iio.imread(gifs[0], index=None)) >= 2, log
     for shot in (shot1, shot2):
         img = np.asarray(iio.imread(shot))
         assert img.shape[:2] == (450, 800)

@@ -491,7 +491,8 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
 #: Environment variable with a script for the window (tests under Xvfb): steps separated by
 #: ``;``, one per timer tick: a key sym (``n``, ``space``, ``Right``), ``click:render:X,Y`` /
 #: ``click:variance:X,Y`` (a real mouse click on that image pixel's centre), ``shot:PATH.png``,
-#: ``wait`` or ``quit``.
+#: ``passes>=N`` / ``passes+N`` (wait until the panels hold N passes / N more), ``wait`` or
+#: ``quit``.
 SCRIPT_ENV = "PSURF_WINDOW_SCRIPT"
 #: Environment variable ``W,H`` overriding the window size (a quicker scripted test).
 SIZE_ENV = "PSURF_WINDOW_SIZE"
@@ -976,6 +977,9 @@ class App:
         if step.startswith("passes>="):  # hold the script until the worker sent N passes
             if self.s.acc.n < int(step[8:]):
                 self.script.insert(0, step)
+            return
+        if step.startswith("passes+"):  # ... until N more passes than now arrived
+            self.script.insert(0, f"passes>={self.s.acc.n + int(step[7:])}")
             return
         if step == "quit":
             print("window: quit", flush=True)
