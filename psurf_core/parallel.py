@@ -46,6 +46,14 @@ def pass_pool(jobs: int) -> ProcessPoolExecutor:
                                initializer=_ignore_sigint)
 
 
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Cancel queued passes and end the workers now (their passes are discarded)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())  # before shutdown
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        proc.terminate()
+
+
 def _pass_task(scene: Scene, spec: str, pass_index: int, seed: int,
                settings: RenderSettings) -> np.ndarray:
     """Run in a worker: one pass's (H, W, 3) float64 image."""
@@ -90,10 +98,17 @@ def render_parallel(
         cancelled and nothing more is merged).
     """
     if pool is None:
-        with pass_pool(jobs) as p:
-            return render_parallel(scene, estimator, settings, passes=passes,
-                                   time_budget=time_budget, seed=seed, pool=p,
-                                   accumulator=accumulator, on_pass=on_pass)
+        p = pass_pool(jobs)
+        try:
+            result = render_parallel(scene, estimator, settings, passes=passes,
+                                     time_budget=time_budget, seed=seed, pool=p,
+                                     accumulator=accumulator, on_pass=on_pass)
+        except BaseException:
+            # Ctrl-C or a failed pass: do not wait for the passes still running.
+            _stop(p)
+            raise
+        p.shutdown(wait=True)
+        return result
     spec = estimator.spec if isinstance(estimator, Estimator) else str(estimator)
     if passes is None and time_budget is None:
         passes = 1

@@ -74,3 +74,11 @@ def test_render_hook_jobs(scene):
     _same(render(scene, est, SETTINGS, passes=3, seed=11), par)
     assert maybe_distributed(argparse.Namespace(dask=None, workers=None, jobs=1), scene, est,
                              SETTINGS, passes=3, seed=11) is None
+
+
+def test_a_failing_pass_is_reraised_and_the_workers_stopped(scene):
+    """A pass that raises in a worker re-raises in the caller; the pool it started ends."""
+    from psurf_core.techniques import UnknownTechnique
+
+    with pytest.raises(UnknownTechnique):  # parsed, and refused, in the worker
+        render_parallel(scene, "no-such-estimator", SETTINGS, passes=2, seed=0, jobs=2)
