@@ -129,8 +129,14 @@ def test_compare_rows_ratio_and_relmse():
     assert rows[0]["ratio"] == 1.0
     assert np.isclose(rows[1]["ratio"], mv[1] * 1.0 / (mv[0] * 2.0))
     assert rows[1]["relmse"] > 0
+    assert rows[1]["equal"] == "time"
     one = SimpleNamespace(label="c", acc=Welford.empty((4, 5, 3)), seconds=0.0)
     assert compare_rows([one])[0]["ratio"] is None
+    # Untimed (screenshots): equal passes, so the ratio is the plain variance ratio.
+    a.seconds = b.seconds = 0.0
+    rows = compare_rows([a, b])
+    assert rows[1]["equal"] == "passes"
+    assert np.isclose(rows[1]["ratio"], mv[1] / mv[0])
 
 
 def test_a_killed_worker_is_reported(scene):

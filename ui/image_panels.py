@@ -224,7 +224,8 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
         lo, hi = im.log_range(np.concatenate([v.ravel() for v in var_means]))
         tiles_a, tiles_b = [], []
         for e, row, v in zip(ents, rows, var_means, strict=True):
-            tiles_a.append(Tile(f"{e.label}\n{e.acc.n} passes, {e.seconds:.1f} s",
+            took = f", {e.seconds:.1f} s" if e.seconds > 0 else ""
+            tiles_a.append(Tile(f"{e.label}\n{e.acc.n} passes{took}",
                                 rgb=im.tone_map(e.acc.mean, exposure), pixel=True))
             title = _fmt_ratio(row["ratio"]) if len(ents) > 1 else "variance of the mean"
             if row["relmse"] is not None:
@@ -232,7 +233,8 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
             tiles_b.append(Tile(title, values=v, clim=(lo, hi), pixel=True))
         head = "renders, one exposure" if len(ents) > 1 else "progressive render"
         return [Area(head, tiles_a, rows=1 if len(ents) <= 3 else None),
-                Area("variance of the mean" + (", Var at equal time" if len(ents) > 1 else ""),
+                Area("variance of the mean" + (f", Var at equal {rows[0]['equal']}"
+                                                if len(ents) > 1 else ""),
                      tiles_b, rows=1 if len(ents) <= 3 else None, bar=MEAN_VARIANCE_BAR)]
     pick = [i for i, e in enumerate(ents) if e.breakdown is not None]
     # By default the first MIS set (the pictures are about MIS), or the first estimator that

@@ -529,7 +529,9 @@ def compare_rows(runs, reference: np.ndarray | None = None) -> list[dict]:
         ``label``, ``passes``, ``seconds``, ``mean_variance`` (``mean(var / passes)``, the
         variance of the current mean image; None below two passes), ``ratio``
         (``mean_variance * seconds`` over the first estimator's: the variance ratio at equal
-        time, corrected for the last pass's overshoot; None when undefined), ``relmse``.
+        time, corrected for the last pass's overshoot; at equal passes (``mean_variance *
+        passes``) when some run reports 0 seconds; None when undefined), ``equal``
+        (``'time'`` or ``'passes'``), ``relmse``.
     """
     from psurf_core.study import relmse
 
@@ -542,9 +544,19 @@ def compare_rows(runs, reference: np.ndarray | None = None) -> list[dict]:
             "relmse": (relmse(r.acc.mean, reference) if reference is not None and n else None),
         })
     base = rows[0] if rows else None
+    # Untimed runs (screenshots: fixed passes, every second reported as 0 so the picture is
+    # deterministic) are compared at equal passes instead of at equal time.
+    timed = all(row["seconds"] > 0 for row in rows)
     for row in rows:
         ok = (base is not None and row["mean_variance"] is not None
-              and base["mean_variance"] and base["seconds"] > 0 and row["seconds"] > 0)
-        row["ratio"] = (row["mean_variance"] * row["seconds"]
-                        / (base["mean_variance"] * base["seconds"])) if ok else None
+              and bool(base["mean_variance"]))
+        if not ok:
+            row["ratio"] = None
+        elif timed:
+            row["ratio"] = (row["mean_variance"] * row["seconds"]
+                            / (base["mean_variance"] * base["seconds"]))
+        else:
+            row["ratio"] = row["mean_variance"] * row["passes"] / (
+                base["mean_variance"] * base["passes"])
+        row["equal"] = "time" if timed else "passes"
     return rows

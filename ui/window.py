@@ -473,6 +473,10 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
     attach_progressive(state, workers=0, breakdown=(mode != "render"))
     state.prog.run(passes=state.initial_passes)
     state.acc = state.prog.runs[0].acc
+    for r in state.prog.runs:
+        # Wall seconds differ from run to run; a screenshot compares at equal passes so the
+        # same arguments always give the same picture.
+        r.seconds = 0.0
     plotter = make_plotter(size, off_screen=True)
     try:
         compose(plotter, state)
