@@ -15,8 +15,11 @@ Drives the window's composition off-screen (``ui.window.make_plotter`` + ``compo
 * ``synchronous`` (for comparison, fewer frames): what the window's timer did before, one
   ``render_pass`` in the callback + redraw of the image panels + ``plotter.render()``.
 
-Both with the window's plotter as it is (VTK's default multisampling) and with
-multisampling off, since software OpenGL (no GPU, EGL/llvmpipe) spends most of a frame on it.
+Both with VTK's default multisampling and with multisampling off, since software OpenGL (no
+GPU, EGL/llvmpipe) spends most of a frame on it; the window itself turns it off on its first
+tick when it finds software OpenGL (``ui.window.software_opengl``), so ``window-tick/no-msaa``
+is what the window does here. On a new pass the window redraws the image panels and the stage
+text only: the 3D view keeps its pixels (``App._frame``).
 
 Run::
 
@@ -140,6 +143,10 @@ def _window_ticks(args, specs, old_plotter, msaa: bool) -> dict:
     if not msaa:
         plotter.ren_win.SetMultiSamples(0)
     app = window.App(plotter, state)
+    if msaa:
+        # Keep multisampling: the window itself switches it off in software OpenGL on its
+        # first tick; this configuration shows what that saves.
+        app._gl_checked = True
     ticks, frames, keys = [], [], []
     try:
         app.bind()

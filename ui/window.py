@@ -425,6 +425,15 @@ def make_plotter(size=DEFAULT_SIZE, off_screen: bool = False) -> pv.Plotter:
     return p
 
 
+def software_opengl(plotter: pv.Plotter) -> bool:
+    """True when VTK renders with a software OpenGL (Mesa llvmpipe / softpipe / swrast)."""
+    try:
+        info = plotter.ren_win.ReportCapabilities() or ""
+    except Exception:  # no context yet or a VTK without the report: assume a GPU
+        return False
+    return any(k in info.lower() for k in ("llvmpipe", "softpipe", "swrast"))
+
+
 # --------------------------------------------------------------------------- public API
 def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes", seed: int = 0,
                out: str = "shot.png", size=DEFAULT_SIZE, passes: int = DEFAULT_PASSES,
@@ -575,6 +584,7 @@ class App:
         self.script: list = []
         self._tags: dict = {}
         self.recorder = None
+        self._gl_checked = False
         self._t0 = time.perf_counter()
 
     @property
@@ -940,6 +950,14 @@ class App:
 
     # ---------------------------------------------------------------- timer
     def tick(self, _step=None) -> None:
+        if not self._gl_checked:  # the first tick: the window and its GL context exist now
+            self._gl_checked = True
+            if software_opengl(self.p):
+                # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every
+                # full render ~3-5x dearer (benchmarks/ui_frames.py); the window stays
+                # responsive without it. Screenshots keep it: they are figures, not frames.
+                self.p.ren_win.SetMultiSamples(0)
+                self.p.render()
         if self.script:
             self._script_step(self.script.pop(0))
         params = self.pending.due(self.clock())
@@ -970,7 +988,17 @@ class App:
             _compose_panel(self.p, self.s)
         finally:
             self.p.suppress_rendering = held
-        self.p.render()
+        # Only the image panels and the stage text changed. The 3D view is the costliest part
+        # of a frame (tens to hundreds of ms in software OpenGL, measured by
+        # benchmarks/ui_frames.py), so it keeps last frame's pixels: VTK renders into its own
+        # framebuffer, and a renderer that is not drawn leaves its viewport as it was. Any
+        # other render (camera moves, stage changes, resizes) draws everything again.
+        view3d = self.p.renderers[self.p.renderers.loc_to_index(_VIEW3D)]
+        view3d.SetDraw(False)
+        try:
+            self.p.render()
+        finally:
+            view3d.SetDraw(True)
         self._record_frame()
 
     def _script_step(self, step: str) -> None:
