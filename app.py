@@ -116,6 +116,11 @@ def build_parser() -> Parser:
     d.add_argument("--estimators", default=None, metavar="A,B",
                    help="window: estimators rendered side by side at equal time (the first "
                         "is the one the stages inspect; default planes)")
+    d.add_argument("--reference", default=None, metavar="FILE.npz",
+                   help="window: an app.py render .npz of SCENE; relMSE under each render")
+    d.add_argument("--pixel", default=None, type=_window_pixel, metavar="X,Y",
+                   help="window: the pixel the stages inspect (X column from the left, Y row "
+                        "from the top; default the centre)")
     d.add_argument("--no-window", action="store_true",
                    help="never open the interactive app; always write the images")
     # Hidden knobs for tests and quick looks.
@@ -185,6 +190,18 @@ def _k_range(scene, min_k: int = 1) -> str:
     return f"K in [{lo}, {'inf' if scene.max_scatter == -1 else scene.max_scatter}]"
 
 
+def _window_pixel(text: str) -> tuple[int, int]:
+    """``--pixel X,Y``: two non-negative integers."""
+    parts = text.split(",")
+    try:
+        x, y = (int(v) for v in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y (two integers), got {text!r}") from None
+    if x < 0 or y < 0:
+        raise argparse.ArgumentTypeError(f"X and Y must be >= 0, got {text!r}")
+    return x, y
+
+
 def _window_specs(text: str | None, scene) -> list | None:
     """``--estimators A,B`` checked before the window opens (the first needs photons)."""
     if not text:
@@ -207,10 +224,21 @@ def cmd_demo(args) -> int:
     scene_path = _demo_scene_path(args.scene)
     scene = _load_scene(scene_path)
     specs = _window_specs(args.estimators, scene)
+    if args.pixel is not None:
+        x, y = args.pixel
+        cam = scene.camera
+        if not (x < cam.width and y < cam.height):
+            raise CliError(f"--pixel {x},{y}: outside the {cam.width}x{cam.height} image "
+                           f"(X in 0..{cam.width - 1}, Y in 0..{cam.height - 1})")
+    if args.reference is not None:
+        from psurf_core.study import load_reference
+
+        load_reference(args.reference, scene)  # SceneError naming the file, before any window
     if not args.no_window:
         run = _interactive_run()
         if run is not None:
-            run(scene_path, estimators=specs)
+            run(scene_path, estimators=specs, reference=args.reference,
+                pixel_xy=args.pixel)
             return 0
     if os.path.exists(args.out) and not os.path.isdir(args.out):
         raise CliError(f"--out {args.out}: exists and is not a directory")

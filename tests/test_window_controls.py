@@ -354,3 +354,58 @@ def test_window_estimators_flag_errors(value, message, capsys, tmp_path):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and err[0].startswith("psurf: error: --estimators")
     assert message in err[0] and not (tmp_path / "o").exists()
+
+
+# --------------------------------------------------------------------------- reference
+@pytest.mark.parametrize("flags, message", [
+    (["--reference", "missing.npz"], "missing.npz: file not found"),
+    (["--pixel", "64,0"], "--pixel 64,0: outside the 64x48 image"),
+    (["--pixel", "a,b"], "--pixel"),
+])
+def test_window_reference_and_pixel_flag_errors(flags, message, capsys, tmp_path):
+    import app
+
+    rc = app.main(["demo", POINT, *flags, "--no-window", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and err[0].startswith("psurf: error:")
+    assert message in err[0] and not (tmp_path / "o").exists()
+
+
+def test_reference_gives_relmse_in_the_panels_and_is_dropped_with_the_medium(tmp_path):
+    """``--reference``: the render panels show relMSE against it (the window and
+    ``screenshot``); a medium change drops it (it is the image of the loaded medium)."""
+    from ui.image_panels import mode_areas
+    from ui.window import (
+        App,
+        attach_progressive,
+        build_state,
+        load_reference_image,
+        make_plotter,
+    )
+
+    state = build_state(POINT, "planes", seed=1, pixel_xy=(32, 24), photons=100,
+                        render_passes=False)
+    ref = tmp_path / "ref.npz"
+    np.savez(ref, mean=np.full((48, 64, 3), 0.01), min_scatter=state.scene.min_scatter,
+             max_scatter=state.scene.max_scatter)
+    state.reference = load_reference_image(str(ref), state.scene)
+    attach_progressive(state, workers=0, breakdown=False)
+    plotter = make_plotter((800, 450), off_screen=True)
+    app = App(plotter, state)
+    try:
+        state.prog.run(passes=2)
+        areas = mode_areas(state.prog, "render", reference=state.reference)
+        assert "relMSE" in areas[1].tiles[0].title
+        app.nudge("sigma_s", 1)
+        app.flush()
+        assert state.reference is None and "reference dropped" in state.message
+    finally:
+        app.close()
+        plotter.close()
+    # The scatter range is checked: a reference of another range is refused by name.
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, mean=np.zeros((48, 64, 3)), min_scatter=5, max_scatter=6)
+    from psurf_core.scene import SceneError
+
+    with pytest.raises(SceneError, match="bad.npz"):
+        load_reference_image(str(bad), state.scene)

@@ -93,6 +93,8 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
                         "(replaces --estimator; each gets --passes passes)")
     p.add_argument("--mode", default="render", choices=("render", "techniques", "bounces"),
                    help="image-panel mode (the window's m key; default: render)")
+    p.add_argument("--reference", default=None, metavar="FILE.npz",
+                   help="an app.py render .npz of this scene: relMSE under each render")
     p.add_argument("--coverage", action="store_true",
                    help="tint the pixels the selected hit's primitive contributes to "
                         "(primitive -> pixels) on the render panel")
@@ -154,7 +156,7 @@ def run_screenshot(args) -> int:
         screenshot(args.scene, args.stage, (x, y), specs[0], args.seed, out,
                    size=tuple(args.size), passes=args.passes, hit=args.hit,
                    photons=args.photons, pass_index=args.pass_index, coverage=args.coverage,
-                   estimators=specs[1:], mode=args.mode)
+                   estimators=specs[1:], mode=args.mode, reference=args.reference)
     except (SceneError, UnknownTechnique, ValueError) as e:
         return _fail(str(e))
     except (ImportError, RuntimeError) as e:

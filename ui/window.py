@@ -123,6 +123,8 @@ class ViewState:
     #: beside the inspected one (``--estimators A,B``: B is extra).
     mode: str = "render"
     extra_specs: tuple = ()
+    #: Ground truth (H, W, 3) for relMSE in the render panels (``--reference FILE.npz``).
+    reference: np.ndarray | None = None
 
     @property
     def stage(self) -> str:
@@ -404,7 +406,8 @@ def _compose_images(plotter: pv.Plotter, state: ViewState) -> None:
 def _compose_progressive(plotter: pv.Plotter, state: ViewState) -> None:
     """The progressive panels (every estimator side by side, or a breakdown mode) and, on the
     inspected estimator's render tile, the coverage overlay."""
-    state.panels.draw(plotter, [_RENDER, _VARIANCE], state.prog, state.mode, state.pixel_xy)
+    state.panels.draw(plotter, [_RENDER, _VARIANCE], state.prog, state.mode, state.pixel_xy,
+                      reference=state.reference)
     plotter.subplot(*_RENDER)
     ren = plotter.renderer
     for name in ("coverage-cells", "coverage-outline"):
@@ -439,7 +442,8 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
                out: str = "shot.png", size=DEFAULT_SIZE, passes: int = DEFAULT_PASSES,
                hit: int | None = None, photons: int = DEFAULT_PHOTONS,
                n_paths: int = primitives_view.DEFAULT_PATHS, pass_index: int = 0,
-               coverage: bool = False, estimators=(), mode: str = "render") -> np.ndarray:
+               coverage: bool = False, estimators=(), mode: str = "render",
+               reference: str | None = None) -> np.ndarray:
     """Render what the window shows at ``stage`` off-screen and write it to ``out`` (PNG).
 
     Parameters
@@ -462,6 +466,8 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
         ``--estimators``); each gets ``passes`` passes here (the window: equal time).
     mode : {'render', 'techniques', 'bounces'}
         Image-panel mode (the window's ``m``).
+    reference : str, optional
+        An ``app.py render`` .npz of this scene: relMSE is shown under each estimator.
 
     Returns
     -------
@@ -477,6 +483,7 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
                         pass_index=pass_index, coverage=coverage, render_passes=False)
     state.n_paths = int(n_paths)
     state.extra_specs, state.mode = tuple(estimators), mode
+    state.reference = load_reference_image(reference, state.scene)
     # The window's panels, rendered here pass by pass (workers=0: deterministic, and
     # bit-identical to a serial render of the same seed).
     attach_progressive(state, workers=0, breakdown=(mode != "render"))
@@ -529,13 +536,27 @@ def attach_progressive(state: ViewState, workers: int = 1, breakdown: bool = Tru
     state.playing = True
 
 
+def load_reference_image(path: str | None, scene) -> np.ndarray | None:
+    """The ``mean`` (H, W, 3) of a reference .npz for ``scene`` (None without a path).
+
+    Raises ``SceneError`` naming the file for a missing/unreadable file, another resolution
+    or scatter range (``psurf_core.study.load_reference``).
+    """
+    if path is None:
+        return None
+    from psurf_core.study import load_reference
+
+    return load_reference(os.fspath(path), scene).mean
+
+
 def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: int = 0,
         pixel_xy=None, photons: int = DEFAULT_PHOTONS, size=DEFAULT_SIZE,
-        workers: int = 1) -> None:
+        workers: int = 1, reference: str | None = None) -> None:
     """Open the interactive window on ``scene_path`` (blocks until it is closed).
 
     ``estimators`` (specs) are rendered side by side at equal time in a background process;
-    the first is the one the stages inspect (default: ``[estimator]``).
+    the first is the one the stages inspect (default: ``[estimator]``). ``reference`` (an
+    ``app.py render`` .npz of the scene) adds relMSE under each render.
 
     With :data:`SCRIPT_ENV` set, its steps are played through the window's own event path
     (synthetic key presses and mouse clicks), one per timer tick, and ``quit`` closes it.
@@ -543,6 +564,7 @@ def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: in
     specs = list(estimators) if estimators else [estimator]
     state = build_state(scene_path, specs[0], seed, pixel_xy, photons, render_passes=False)
     state.extra_specs = tuple(specs[1:])
+    state.reference = load_reference_image(reference, state.scene)
     attach_progressive(state, workers=workers)
     if os.environ.get(SIZE_ENV):
         size = tuple(int(v) for v in os.environ[SIZE_ENV].split(","))
@@ -886,8 +908,14 @@ class App:
         s = self.s
         s.scene = controls.scene_with(s.base_scene, params)
         s.settings = replace(s.settings, photons=int(params.photons))
+        dropped = ""
+        if s.reference is not None and s.scene.medium != s.base_scene.medium:
+            # The reference is the image of the medium as loaded; relMSE against it would
+            # measure the change of medium, not the estimator's error.
+            s.reference = None
+            dropped = "; reference dropped (another medium)"
         self.restart(f"sigma_s {params.sigma_s:.3g}  sigma_a {params.sigma_a:.3g}  "
-                     f"g {params.g:.2f}  photons {params.photons}: restarted")
+                     f"g {params.g:.2f}  photons {params.photons}: restarted{dropped}")
         self.redraw()
 
     def flush(self) -> None:
