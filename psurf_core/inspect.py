@@ -44,6 +44,7 @@ __all__ = [
     "HitTable",
     "PixelInspection",
     "inspect_pixel",
+    "member_primitives",
     "primitive_pixels",
     "reconstruct_hit",
 ]
@@ -452,6 +453,65 @@ def reconstruct_hit(inspection: PixelInspection, k: int) -> dict:
         except NotImplementedError:
             q = float("nan")
         out["members"] = [(name, q, 1.0)]
+    return out
+
+
+def member_primitives(inspection: PixelInspection, recon: dict) -> dict:
+    """The primitive every MIS member sweeps through the path a hit implies.
+
+    The talk's Reconstruct picture: one full path, and every technique's surface through it
+    (whose density ``Q_j`` on that path :func:`reconstruct_hit` gives). The path's vertices
+    (light ``x_K`` .. ``x0``) become a one-photon :class:`~psurf_core.trace.PhotonPaths`
+    (unit weights), and each member's own ``create`` makes its primitives of scatter count
+    ``K`` from it. Every exact member's surface then contains ``x0``; a short (track-length)
+    member's extent is the path's own segment lengths, so ``x0`` lies on its edge.
+
+    Parameters
+    ----------
+    recon : dict
+        :func:`reconstruct_hit` output with ``available`` True.
+
+    Returns
+    -------
+    dict
+        ``member name -> (technique, Primitives, rows)``; rows ``(n,) int`` of primitives
+        with the hit's ``K`` (empty when the member cannot make this path, e.g. a
+        single-scattering technique for ``K >= 2``). Empty for an unavailable reconstruction.
+    """
+    from .trace import PhotonPaths
+
+    if not recon.get("available"):
+        return {}
+    rec = recon["record"]
+    K = int(recon["K"])
+    verts = np.asarray(recon["polyline"], dtype=float)[:-1]  # light x_K .. x0 (no camera)
+    if verts.shape[0] != K + 1:
+        return {}
+    seg = np.diff(verts, axis=0)
+    t = np.linalg.norm(seg, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = seg / t[:, None]
+    if not (np.all(np.isfinite(w)) and np.all(t > 0)):
+        return {}
+    x = verts
+    paths = PhotonPaths(
+        n_emitted=1, light=np.asarray(rec.light[:1], dtype=np.int64),
+        light_pmf=np.ones(1), light_uv=np.asarray(rec.uv[:1], dtype=float),
+        tri=np.asarray(rec.tri[:1], dtype=np.int64),
+        light_normal=np.asarray(rec.axis[:1], dtype=float), x=x[None], w=w[None], t=t[None],
+        beta=np.ones((1, K, 3)), alive=np.ones((1, K), dtype=bool),
+        prefix_ok=np.ones((1, K + 1), dtype=bool),
+        clip=np.stack([np.zeros(K), t], axis=1)[None])
+    group = inspection.groups[int(inspection.table.group[int(recon["row"])])]
+    out = {}
+    for tech in group:
+        ctx = inspection.context(tech.name)
+        try:
+            prims = tech.create(paths, ctx)
+        except (IndexError, ValueError):  # a member that needs more of the path than exists
+            out[tech.name] = (tech, None, np.zeros(0, np.int64))
+            continue
+        out[tech.name] = (tech, prims, np.flatnonzero(prims.K == K))
     return out
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pyvista as pv
 
 from . import scene_view
-from .primitives_view import add_primitives
+from .primitives_view import add_legend, add_primitives, primitive_mesh
 from .scene_view import (
     FONT,
     FONT_SMALL,
@@ -28,6 +28,10 @@ HIT_COLOUR = OKABE_ITO["orange"]
 PATH_COLOUR = OKABE_ITO["vermillion"]
 #: Normals and psi are drawn at this many hits (largest contributions).
 NORMAL_ROWS = 3
+#: Colours of the MIS members' surfaces in Reconstruct (one per member, in group order;
+#: Okabe-Ito, colour-blind safe; several members share a family, so families won't do).
+MEMBER_COLOURS = [OKABE_ITO[c] for c in ("blue", "orange", "green", "purple", "sky_blue",
+                                          "vermillion", "yellow", "grey")]
 
 
 # --------------------------------------------------------------------------- selection
@@ -179,6 +183,44 @@ def add_reconstruction(plotter: pv.Plotter, inspection, recon: dict) -> None:
                                      shape_opacity=0.85, show_points=False,
                                      always_visible=True, name="recon-labels")
     actor.GetMapper().PlaceAllLabelsOn()  # every vertex named, even where labels touch
+
+
+def add_member_surfaces(plotter: pv.Plotter, inspection, recon: dict, members: dict, *,
+                        opacity: float = 0.22) -> list:
+    """Every MIS member's surface through the reconstructed path (the talk's Reconstruct:
+    one path, each technique's primitive through it, their ``Q`` and weights), one colour per
+    member; the hit's own technique is drawn stronger. Returns the legend entries.
+
+    ``members`` is :func:`psurf_core.inspect.member_primitives` of ``recon``.
+    """
+    q_w = {name: (q, w) for name, q, w in recon["members"]}
+    entries = []
+    for i, (name, (tech, prims, rows)) in enumerate(members.items()):
+        col = MEMBER_COLOURS[i % len(MEMBER_COLOURS)]
+        q, w = q_w.get(name, (float("nan"), float("nan")))
+        own = name == recon["technique"]
+        label = f"{'> ' if own else ''}{name}  w {w:.2f}"
+        if prims is None or rows.size == 0:
+            entries.append([f"{name}: cannot make K={recon['K']}", OKABE_ITO["grey"]])
+            continue
+        mesh, how = primitive_mesh(tech, prims, rows, inspection.scene,
+                                   inspection.radii.get(name, 0.0))
+        if mesh.n_points:
+            if how == "bounds":
+                plotter.add_mesh(mesh, color=col, line_width=px(3), name=f"member-{name}")
+            else:
+                plotter.add_mesh(mesh, color=col, opacity=0.55 if own else opacity,
+                                 show_edges=False, culling=False, name=f"member-{name}")
+                edges = mesh.extract_feature_edges(boundary_edges=True, feature_edges=False,
+                                                   manifold_edges=False,
+                                                   non_manifold_edges=False)
+                if edges.n_points:
+                    plotter.add_mesh(edges, color=col, line_width=px(4 if own else 2),
+                                     name=f"member-{name}-edges")
+        entries.append([label, col])
+    if entries:
+        add_legend(plotter, entries, loc="lower right")
+    return entries
 
 
 def label_offsets(scene, pts: np.ndarray, dist: float) -> np.ndarray:

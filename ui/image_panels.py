@@ -227,14 +227,14 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
             took = f", {e.seconds:.1f} s" if e.seconds > 0 else ""
             tiles_a.append(Tile(f"{e.label}\n{e.acc.n} passes{took}",
                                 rgb=im.tone_map(e.acc.mean, exposure), pixel=True))
-            title = _fmt_ratio(row["ratio"]) if len(ents) > 1 else "variance of the mean"
+            title = _fmt_ratio(row["ratio"]) if len(ents) > 1 else e.label
             if row["relmse"] is not None:
                 title += f"  relMSE {row['relmse']:.2g}"
             tiles_b.append(Tile(title, values=v, clim=(lo, hi), pixel=True))
         head = "renders, one exposure" if len(ents) > 1 else "progressive render"
         return [Area(head, tiles_a, rows=1 if len(ents) <= 3 else None),
-                Area("variance of the mean" + (f", Var at equal {rows[0]['equal']}"
-                                                if len(ents) > 1 else ""),
+                Area(f"Var at equal {rows[0]['equal']}" if len(ents) > 1
+                     else "variance of the mean",
                      tiles_b, rows=1 if len(ents) <= 3 else None, bar=MEAN_VARIANCE_BAR)]
     pick = [i for i, e in enumerate(ents) if e.breakdown is not None]
     # By default the first MIS set (the pictures are about MIS), or the first estimator that

@@ -42,7 +42,12 @@ import pyvista as pv
 
 from psurf_core.accumulate import Welford
 from psurf_core.estimators import parse_estimator
-from psurf_core.inspect import inspect_pixel, primitive_pixels, reconstruct_hit
+from psurf_core.inspect import (
+    inspect_pixel,
+    member_primitives,
+    primitive_pixels,
+    reconstruct_hit,
+)
 from psurf_core.render import RenderSettings, render, render_pass
 from psurf_core.scene_io import load_scene
 
@@ -329,7 +334,11 @@ def _compose_3d(plotter: pv.Plotter, state: ViewState) -> None:
         hits_view.add_query_ray(plotter, ins)
         recon, _ = _recon(state)
         if recon is not None:
-            hits_view.add_hit_primitives(plotter, ins, [recon["row"]], opacity=0.6)
+            members = member_primitives(ins, recon)
+            if members:  # every member's surface through this path, with its weight
+                hits_view.add_member_surfaces(plotter, ins, recon, members)
+            else:  # a kernel estimator: no exact path, only its own primitive
+                hits_view.add_hit_primitives(plotter, ins, [recon["row"]], opacity=0.6)
             hits_view.add_reconstruction(plotter, ins, recon)
     target = coverage_target(state) if state.coverage else None
     if target is not None:
