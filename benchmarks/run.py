@@ -10,10 +10,13 @@ What is measured (one process, one core; every rate names its own numerator and 
 * **stages of one pass** (the loop of :func:`psurf_core.render.photon_pass`, timed stage by
   stage): photon vertices traced/s (``trace``), primitives created/s (``create``), candidate
   ray-primitive pairs found/s (``binning``) and tested/s (``intersect``), hits evaluated/s
-  (``evaluate``), MIS weights/s (``mis``).
+  (``evaluate``), MIS weights/s (``mis``). A technique with a fused path
+  (``Technique.fused_pass``, used by ``photon_pass`` when it is alone in its group) is timed
+  as one ``fused`` stage (binning + intersect + evaluate; its candidate pairs are not
+  counted).
 * ``hits_per_second``: *evaluated hits* (pairs with a valid root whose contribution, shadow
   tests included, was computed) divided by the whole time spent finding and evaluating them:
-  binning + intersect + evaluate + MIS weights.
+  binning + intersect + evaluate + MIS weights + fused.
 * ``pass_hits_per_second``: the same hits over the wall time of a real
   :func:`psurf_core.render.render_pass` (tracing, creation and camera rays included; hits
   counted through its ``tally`` hook).
@@ -61,7 +64,7 @@ from psurf_core.scene_io import load_scene  # noqa: E402
 from psurf_core.techniques.base import PassContext  # noqa: E402
 from psurf_core.trace import trace  # noqa: E402
 
-STAGES = ("trace", "create", "binning", "intersect", "evaluate", "mis")
+STAGES = ("trace", "create", "binning", "intersect", "evaluate", "mis", "fused")
 
 
 def with_resolution(scene, width: int, height: int):
@@ -109,6 +112,13 @@ def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
                 prims = tech.create(paths, ctx)
                 pt["create"] += time.perf_counter() - a
                 pt["prims"] += len(prims)
+                fused = tech.fused_pass(prims, paths, rays, ctx) if len(group) == 1 else None
+                if fused is not None:
+                    # As photon_pass runs it: binning, intersect and evaluate in one step
+                    # (its candidate pairs are not counted).
+                    for hits, _ in _timed_iter(iter(fused), pt, "fused"):
+                        pt["hits"] += len(hits)
+                    continue
                 pairs = candidate_pairs(scene.camera, rays, prims.lo, prims.hi,
                                         settings.max_pairs, prims.hull,
                                         (scene.medium.bounds_min, scene.medium.bounds_max))
@@ -132,7 +142,7 @@ def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
             t[k] += pt[k]
         for k in ("prims", "pairs", "hits"):
             n[k] += pt[k]
-    find_eval = t["binning"] + t["intersect"] + t["evaluate"] + t["mis"]
+    find_eval = t["binning"] + t["intersect"] + t["evaluate"] + t["mis"] + t["fused"]
     return {
         "photons": photons,
         "pixels": scene.camera.n_pixels,
@@ -142,9 +152,10 @@ def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
         "primitives_per_second": n["prims"] / max(t["create"], 1e-9),
         "pairs_found_per_second": n["pairs"] / max(t["binning"], 1e-9),
         "pairs_tested_per_second": n["pairs"] / max(t["intersect"], 1e-9),
-        "hits_evaluated_per_second": n["hits"] / max(t["evaluate"] + t["mis"], 1e-9),
+        "hits_evaluated_per_second": n["hits"] / max(t["evaluate"] + t["mis"] + t["fused"],
+                                                     1e-9),
         "hits_per_second": n["hits"] / max(find_eval, 1e-9),
-        "hit_fraction": n["hits"] / max(n["pairs"], 1),
+        "hit_fraction": n["hits"] / n["pairs"] if n["pairs"] else None,
         "techniques": per_tech,
     }
 
@@ -189,6 +200,10 @@ def two_process(scene, spec: str, photons: int, passes: int) -> dict:
 
 _RATES = ("photon_vertices_per_second", "primitives_per_second", "pairs_tested_per_second",
           "hits_evaluated_per_second", "hits_per_second")
+
+
+def _percent(x) -> str:
+    return "n/a" if x is None else f"{100 * x:.0f}%"
 
 
 def scaling(scene, spec: str, photons: int) -> dict:
@@ -288,6 +303,8 @@ def main(argv=None) -> int:
           f"{args.photons} photons, one pass, one process")
     results = {}
     for spec in args.estimators.split(","):
+        # Warm-up: compiled kernels (numba) load from their cache on first use.
+        stage_pass(scene, spec, 64)
         r = stage_pass(scene, spec, args.photons)
         r.update(whole_pass(scene, spec, args.photons))
         results[spec] = r
@@ -295,7 +312,7 @@ def main(argv=None) -> int:
         print(f"{spec:>12}: {r['hits_per_second']:9.3g} hits/s (find+eval), "
               f"{r['pass_hits_per_second']:9.3g} hits/s (whole pass) | "
               f"{r['pairs']:>9} pairs -> {r['hits']:>9} hits "
-              f"({100 * r['hit_fraction']:.0f}%) | s: " + " ".join(
+              f"({_percent(r['hit_fraction'])}) | s: " + " ".join(
                   f"{k} {s[k]:.2f}" for k in STAGES) + f" | pass {r['pass_seconds']:.2f}")
         for name, pt in r["techniques"].items():
             if len(r["techniques"]) > 1:

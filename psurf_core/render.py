@@ -136,12 +136,15 @@ def photon_pass(
                 prims = tech.create(paths, ctx)
                 if record is not None:
                     record.prims[(tech.name, b)] = prims
-                for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi,
-                                                 settings.max_pairs, prims.hull, box):
-                    hits = tech.intersect(prims, rays, ray, prim, ctx)
+                # A technique alone in its group may find and evaluate its hits in one fused
+                # step (same hits and values); MIS groups run the stages.
+                chunks = tech.fused_pass(prims, paths, rays, ctx) if len(group) == 1 else None
+                if chunks is None:
+                    chunks = _stage_chunks(tech, prims, paths, rays, ctx, settings, box)
+                for hits, raw in chunks:
                     if len(hits) == 0:
                         continue
-                    raw = val = tech.evaluate(hits, prims, paths, rays, ctx)
+                    val = raw
                     if len(group) > 1:
                         val = val * mis_weights(tech, group, estimator.weighting, hits, prims,
                                                 paths, rays, ctx)[:, None]
@@ -151,6 +154,15 @@ def photon_pass(
                         record.hits.setdefault((tech.name, b), []).append((hits, val))
                     _accumulate(out, hits.ray, val)
     return out
+
+
+def _stage_chunks(tech, prims, paths, rays, ctx, settings, box):
+    """``(Hits, per-photon values)`` chunks of ``tech`` by binning -> intersect -> evaluate."""
+    for ray, prim in candidate_pairs(ctx.scene.camera, rays, prims.lo, prims.hi,
+                                     settings.max_pairs, prims.hull, box):
+        hits = tech.intersect(prims, rays, ray, prim, ctx)
+        if len(hits):
+            yield hits, tech.evaluate(hits, prims, paths, rays, ctx)
 
 
 def render_pass(

@@ -169,6 +169,20 @@ class Technique:
                  ctx: PassContext) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def fused_pass(self, prims: Primitives, paths, rays, ctx: PassContext):
+        """Optional fused Intersect + Evaluate over all of ``prims``' candidate pairs.
+
+        Returns
+        -------
+        iterator of (Hits, (H, 3) ndarray), or None
+            The hits and per-photon contributions that ``binning.candidate_pairs`` ->
+            :meth:`intersect` -> :meth:`evaluate` would give (chunked by
+            ``ctx.max_pairs``), or ``None`` (the default) when the technique has no fused
+            path or it does not apply: :func:`~psurf_core.render.photon_pass` then runs
+            the stages.
+        """
+        return None
+
     # ---------------------------------------------------------------- MIS (Reconstruct)
     def reconstruct(self, hits: Hits, prims: Primitives, paths, rays, ctx: PassContext):
         """The full path (:class:`~psurf_core.path_record.PathRecord`) each hit implies."""

@@ -130,6 +130,13 @@ class PhotonPlane(Technique):
             scal = np.where(valid, scal / hits.data["n_dot_psi"], 0.0)
         return paths.beta[photon, K - 1] * scal[:, None]
 
+    # ------------------------------------------------------------------ Fused
+    def fused_pass(self, prims, paths, rays, ctx):
+        """Intersect + Evaluate in one compiled loop (:mod:`.planes_fused`)."""
+        from .planes_fused import plane_chunks
+
+        return plane_chunks(self, prims, paths, rays, ctx)
+
     # ------------------------------------------------------------------ Reconstruct
     def reconstruct(self, hits, prims, paths, rays, ctx):
         p = hits.prim

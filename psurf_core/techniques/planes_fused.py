@@ -1,0 +1,550 @@
+"""Fused photon-plane gather: row spans -> pixels' rays -> plane solve -> contribution, in
+compiled loops (numba).
+
+The stage path (``binning.candidate_pairs`` -> ``PhotonPlane.intersect`` ->
+``PhotonPlane.evaluate``) materialises every candidate pair and every intermediate as numpy
+arrays, about 1 us per hit. Here :func:`_clip_project` and :func:`_row_spans` compute the
+per-row pixel spans binning computes (each hull polygon clipped to the medium box and the near
+plane, projected, within the primitive's screen rectangle), and :func:`_plane_kernel` walks
+them: the rays of each pixel, the plane solve, and the contribution with the sphere / box /
+emitter-quad shadow tests inline, writing only the hits. A shadow segment whose box meets a
+triangle mesh's box is handed back (status ``_DEFER``) and tested by
+:meth:`Blockers.occluded` (Embree plus the exact float64 re-test). The results equal the
+stage path's: the same hits (spans are padded by ``_SPAN_MARGIN`` pixels, so rounding in
+them changes only which misses are tried), values equal to rounding
+(``tests/test_fused_planes.py``).
+
+The kernels are single-threaded (the output order is the span order, independent of thread
+scheduling); the second core comes from pass-level worker processes (``--jobs``). They are
+compiled once per clone (``cache=True``, in ``__pycache__``)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+from numba import njit
+
+from ..binning import _NEAR, _SPAN_MARGIN, _chunk_bounds, _pixel_ray_table, _spans, screen_rects
+from ..constants import PARALLEL_EPS, SHADOW_EPS
+from ..geometry import _BOUNDS_PAD
+from ..sampling import INV_4PI
+from .base import Hits
+
+#: Shadow-segment status written by the kernel.
+_CLEAR, _BLOCKED, _DEFER = 0, 1, 2
+
+#: Blocker kinds in :func:`_blocker_arrays` (order of ``Blockers.bounds``).
+_SPHERE, _BOX, _QUAD, _MESH = 0, 1, 2, 3
+
+
+@njit(cache=True, error_model="numpy")
+def _slab(o, d, lo, hi):  # pragma: no cover - compiled
+    """Entry and exit of one axis's slab (``geometry.ray_box``)."""
+    inv = 1.0 / (PARALLEL_EPS if abs(d) < PARALLEL_EPS else d)
+    ta = (lo - o) * inv
+    tb = (hi - o) * inv
+    return min(ta, tb), max(ta, tb)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _occluded(a0, a1, a2, b0, b1, b2, blk):  # pragma: no cover - compiled
+    """Status of the open segment ``a -> b``: ``_CLEAR``, ``_BLOCKED`` or ``_DEFER`` (a mesh's
+    box meets it: the caller runs the exact test). Mirrors :meth:`Blockers.occluded`: the
+    per-blocker box (and quad plane) reject, then the first-hit tests of ``first_hit`` in
+    ``(SHADOW_EPS, |b - a| - SHADOW_EPS)``. ``blk``: rows of :func:`_blocker_table`."""
+    nbl = blk.shape[0]
+    lo0, hi0 = min(a0, b0), max(a0, b0)
+    lo1, hi1 = min(a1, b1), max(a1, b1)
+    lo2, hi2 = min(a2, b2), max(a2, b2)
+    near = False
+    mesh = False
+    for k in range(nbl):
+        meet = (lo0 <= blk[k, 4] + _BOUNDS_PAD and hi0 >= blk[k, 1] - _BOUNDS_PAD
+                and lo1 <= blk[k, 5] + _BOUNDS_PAD and hi1 >= blk[k, 2] - _BOUNDS_PAD
+                and lo2 <= blk[k, 6] + _BOUNDS_PAD and hi2 >= blk[k, 3] - _BOUNDS_PAD)
+        if meet and blk[k, 0] == _QUAD:
+            # geometry._crosses_plane
+            da = a0 * blk[k, 7] + a1 * blk[k, 8] + a2 * blk[k, 9] - blk[k, 10]
+            db = b0 * blk[k, 7] + b1 * blk[k, 8] + b2 * blk[k, 9] - blk[k, 10]
+            ln = np.sqrt((b0 - a0) ** 2 + (b1 - a1) ** 2 + (b2 - a2) ** 2)
+            t = da / (da - db) * ln
+            meet = da * db <= 0.0 and t >= 0.5 * SHADOW_EPS and t <= ln - 0.5 * SHADOW_EPS
+        if meet:
+            near = True
+            if blk[k, 0] == _MESH:
+                mesh = True
+    if not near:
+        return _CLEAR
+    if mesh:
+        return _DEFER
+    v0, v1, v2 = b0 - a0, b1 - a1, b2 - a2
+    length = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    nrm = length if length > 0 else 1.0
+    d0, d1, d2 = v0 / nrm, v1 / nrm, v2 / nrm
+    t_min = SHADOW_EPS
+    t_max = length - SHADOW_EPS
+    for k in range(nbl):
+        if blk[k, 0] == _SPHERE:  # geometry.ray_sphere
+            o0, o1, o2 = a0 - blk[k, 11], a1 - blk[k, 12], a2 - blk[k, 13]
+            bb = o0 * d0 + o1 * d1 + o2 * d2
+            cc = o0 * o0 + o1 * o1 + o2 * o2 - blk[k, 14] * blk[k, 14]
+            disc = bb * bb - cc
+            if disc >= 0.0:
+                sq = np.sqrt(disc)
+                tn, tf = -bb - sq, -bb + sq
+                t = tn if tn > t_min else tf
+                if np.isfinite(t) and t > t_min and t < t_max:
+                    return _BLOCKED
+        elif blk[k, 0] == _BOX:  # geometry.ray_box
+            te0, tx0 = _slab(a0, d0, blk[k, 11], blk[k, 14])
+            te1, tx1 = _slab(a1, d1, blk[k, 12], blk[k, 15])
+            te2, tx2 = _slab(a2, d2, blk[k, 13], blk[k, 16])
+            te, tx = max(te0, te1, te2), min(tx0, tx1, tx2)
+            if te < tx:
+                t = te if te > t_min else tx
+                if np.isfinite(t) and t > t_min and t < t_max:
+                    return _BLOCKED
+        elif blk[k, 0] == _QUAD:  # geometry.ray_parallelogram
+            denom = d0 * blk[k, 20] + d1 * blk[k, 21] + d2 * blk[k, 22]
+            t = ((blk[k, 11] - a0) * blk[k, 20] + (blk[k, 12] - a1) * blk[k, 21]
+                 + (blk[k, 13] - a2) * blk[k, 22]) / denom
+            p0 = a0 + t * d0 - blk[k, 11]
+            p1 = a1 + t * d1 - blk[k, 12]
+            p2 = a2 + t * d2 - blk[k, 13]
+            r0 = p0 * blk[k, 14] + p1 * blk[k, 15] + p2 * blk[k, 16]
+            r1 = p0 * blk[k, 17] + p1 * blk[k, 18] + p2 * blk[k, 19]
+            u = r0 * blk[k, 23] + r1 * blk[k, 24]
+            w = r0 * blk[k, 25] + r1 * blk[k, 26]
+            if (abs(denom) > PARALLEL_EPS and u >= 0.0 and u <= 1.0 and w >= 0.0
+                    and w <= 1.0 and np.isfinite(t) and t > t_min and t < t_max):
+                return _BLOCKED
+    return _CLEAR
+
+
+@njit(cache=True, error_model="numpy")
+def _plane_kernel(span_prim, span_row, span_c0, span_c1, width, order, start, counts,
+                  ray_o, ray_d, s_min, s_max, pinhole, m, sdet,
+                  x2, w2, w1, T2, T1, own, beta, short,
+                  sigma_t, sigma_s, g, bmin, bmax,
+                  blk, cap):  # pragma: no cover - compiled
+    """Every hit of the spans' pairs, in span, pixel, ray order (see :func:`plane_chunks`).
+
+    Returns
+    -------
+    n : int
+        Hits written (the first ``n`` rows of every output).
+    n_defer : int
+        Hits with a ``_DEFER`` status.
+    ray, prim : (cap,) int64
+    s, t1, t2, ndp : (cap,) float64
+        Ray distance, plane coordinates and ``|(w1 x w2) . psi|``.
+    value : (cap, 3) float64
+        Per-photon contribution; 0 where a shadow test failed; unmasked where a status is
+        ``_DEFER``.
+    status : (cap, 2) int8
+        Shadow status of ``x2 -> x1`` and ``x1 -> x0``.
+    """
+    o_ray = np.empty(cap, np.int64)
+    o_prim = np.empty(cap, np.int64)
+    o_s = np.empty(cap)
+    o_t1 = np.empty(cap)
+    o_t2 = np.empty(cap)
+    o_ndp = np.empty(cap)
+    o_val = np.empty((cap, 3))
+    o_st = np.empty((cap, 2), np.int8)
+    n = 0
+    n_defer = 0
+    nbl = blk.shape[0]
+    eps = 1e-9  # geometry.inside_box tolerance
+    for i in range(span_prim.shape[0]):
+        p = span_prim[i]
+        if pinhole:
+            m00, m01, m02 = m[p, 0, 0], m[p, 0, 1], m[p, 0, 2]
+            m10, m11, m12 = m[p, 1, 0], m[p, 1, 1], m[p, 1, 2]
+            m20, m21, m22 = m[p, 2, 0], m[p, 2, 1], m[p, 2, 2]
+            sd = sdet[p]
+        base = span_row[i] * width
+        for c in range(span_c0[i], span_c1[i]):
+            pix = base + c
+            for j in range(counts[pix]):
+                r = order[start[pix] + j]
+                if not pinhole:
+                    # _plane_solver for this pair: rows w1 x w2, w1 x b, b x w2; b = o - x2.
+                    b0 = ray_o[r, 0] - x2[p, 0]
+                    b1 = ray_o[r, 1] - x2[p, 1]
+                    b2 = ray_o[r, 2] - x2[p, 2]
+                    u0, u1, u2 = w1[p, 0], w1[p, 1], w1[p, 2]
+                    v0, v1, v2 = w2[p, 0], w2[p, 1], w2[p, 2]
+                    m00, m01, m02 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+                    m10, m11, m12 = u1 * b2 - u2 * b1, u2 * b0 - u0 * b2, u0 * b1 - u1 * b0
+                    m20, m21, m22 = b1 * v2 - b2 * v1, b2 * v0 - b0 * v2, b0 * v1 - b1 * v0
+                    sd = v0 * m10 + v1 * m11 + v2 * m12
+                q0, q1, q2 = ray_d[r, 0], ray_d[r, 1], ray_d[r, 2]
+                det = m00 * q0 + m01 * q1 + m02 * q2
+                inv = 1.0 / det
+                t2 = (m10 * q0 + m11 * q1 + m12 * q2) * inv
+                t1 = (m20 * q0 + m21 * q1 + m22 * q2) * inv
+                s = sd * inv
+                if not (np.isfinite(inv) and t2 > 0 and t1 > 0 and s > s_min[r] and s < s_max[r]):
+                    continue
+                if short and not (t2 < T2[p] and t1 < T1[p]):
+                    continue
+                # Evaluate (PhotonPlane.evaluate): x2 -> x1 along the photon, x1 -> x0.
+                x10 = x2[p, 0] + t2 * w2[p, 0]
+                x11 = x2[p, 1] + t2 * w2[p, 1]
+                x12 = x2[p, 2] + t2 * w2[p, 2]
+                # Status of x2 -> x1 (st1) and x1 -> x0 (st2); -1: still to test. One call
+                # site of the (inlined) shadow test keeps the compiled code small.
+                if own[p] and t2 < T2[p]:
+                    st1 = _CLEAR
+                elif not (bmin[0] - eps <= x10 <= bmax[0] + eps
+                          and bmin[1] - eps <= x11 <= bmax[1] + eps
+                          and bmin[2] - eps <= x12 <= bmax[2] + eps):
+                    st1 = _BLOCKED
+                else:
+                    st1 = _CLEAR if nbl == 0 else -1
+                st2 = _CLEAR if nbl == 0 else (_BLOCKED if st1 == _BLOCKED else -1)
+                for seg in range(2):
+                    if seg == 0:
+                        if st1 >= 0:
+                            continue
+                        a0, a1, a2 = x2[p, 0], x2[p, 1], x2[p, 2]
+                        e0, e1, e2 = x10, x11, x12
+                    else:
+                        if st2 >= 0:
+                            continue
+                        a0, a1, a2 = x10, x11, x12
+                        e0 = ray_o[r, 0] + s * q0
+                        e1 = ray_o[r, 1] + s * q1
+                        e2 = ray_o[r, 2] + s * q2
+                    res = _occluded(a0, a1, a2, e0, e1, e2, blk)
+                    if seg == 0:
+                        st1 = res
+                        if res == _BLOCKED:
+                            st2 = _BLOCKED
+                    else:
+                        st2 = res
+                ndp = abs(det)
+                if st1 == _BLOCKED or st2 == _BLOCKED:
+                    scal = 0.0
+                else:
+                    if g == 0.0:
+                        rho0 = INV_4PI
+                    else:  # sampling.phase_value
+                        mu = -(w1[p, 0] * q0 + w1[p, 1] * q1 + w1[p, 2] * q2)
+                        mu = min(max(mu, -1.0), 1.0)
+                        if g > 0.0:
+                            den = (1.0 - g) ** 2 + 2.0 * g * (1.0 - mu)
+                        else:
+                            den = (1.0 + g) ** 2 - 2.0 * g * (1.0 + mu)
+                        rho0 = INV_4PI * ((1.0 - g) * (1.0 + g)) / (den * np.sqrt(den))
+                    scal = sigma_t * sigma_s * rho0 * np.exp(-sigma_t * (s - s_min[r]))
+                    if not short:
+                        scal = scal * np.exp(-sigma_t * (t1 + t2))
+                    scal = scal / ndp
+                o_ray[n] = r
+                o_prim[n] = p
+                o_s[n] = s
+                o_t1[n] = t1
+                o_t2[n] = t2
+                o_ndp[n] = ndp
+                o_val[n, 0] = beta[p, 0] * scal
+                o_val[n, 1] = beta[p, 1] * scal
+                o_val[n, 2] = beta[p, 2] * scal
+                o_st[n, 0] = st1
+                o_st[n, 1] = st2
+                if st1 == _DEFER or st2 == _DEFER:
+                    n_defer += 1
+                n += 1
+    return n, n_defer, o_ray, o_prim, o_s, o_t1, o_t2, o_ndp, o_val, o_st
+
+
+@njit(cache=True, error_model="numpy")
+def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
+    """Per primitive: the hull polygon clipped to ``planes`` (rows ``(n, offset)``: keep
+    ``x . n >= offset``; Sutherland-Hodgman as ``binning.clip_polygons``), projected to
+    pixels, and its first candidate row and row count (as ``binning._polygon_spans``).
+    A primitive not ``live`` (its rectangle is empty) gets no rows; one whose hull is not
+    finite gets its rectangle's rows and ``count = -1``.
+
+    Returns
+    -------
+    px, py : (M, V + 7) float
+    count : (M,) int64
+    r0, nr : (M,) int64
+    """
+    m, v = hull.shape[0], hull.shape[1]
+    vmax = v + planes.shape[0]
+    px = np.zeros((m, vmax))
+    py = np.zeros((m, vmax))
+    count = np.zeros(m, np.int64)
+    r0 = np.zeros(m, np.int64)
+    nr = np.zeros(m, np.int64)
+    a = np.empty((vmax, 3))
+    b = np.empty((vmax, 3))
+    for i in range(m):
+        if not live[i]:
+            continue
+        if not np.all(np.isfinite(hull[i])):
+            count[i] = -1
+            r0[i] = y0[i]
+            nr[i] = y1[i] - y0[i]
+            continue
+        n = v
+        a[:v] = hull[i]
+        for k in range(planes.shape[0]):
+            out = 0
+            for j in range(n):
+                jn = j + 1 if j + 1 < n else 0
+                dj = (a[j, 0] * planes[k, 0] + a[j, 1] * planes[k, 1] + a[j, 2] * planes[k, 2]
+                      - planes[k, 3])
+                dn = (a[jn, 0] * planes[k, 0] + a[jn, 1] * planes[k, 1]
+                      + a[jn, 2] * planes[k, 2] - planes[k, 3])
+                if dj >= 0:
+                    b[out] = a[j]
+                    out += 1
+                if (dj >= 0) != (dn >= 0):
+                    f = dj / (dj - dn)
+                    for c in range(3):
+                        b[out, c] = a[j, c] + f * (a[jn, c] - a[j, c])
+                    out += 1
+            n = out
+            a[:n] = b[:n]
+            if n == 0:
+                break
+        count[i] = n
+        if n == 0:
+            continue
+        ymin, ymax = np.inf, -np.inf
+        for j in range(n):
+            vx = a[j, 0] - cam[0]
+            vy = a[j, 1] - cam[1]
+            vz = a[j, 2] - cam[2]
+            depth = vx * cam[3] + vy * cam[4] + vz * cam[5]
+            x = (vx * cam[6] + vy * cam[7] + vz * cam[8]) / (depth * cam[12] * cam[13])
+            y = (vx * cam[9] + vy * cam[10] + vz * cam[11]) / (depth * cam[12])
+            px[i, j] = (x + 1.0) * 0.5 * cam[14]
+            py[i, j] = (1.0 - y) * 0.5 * cam[15]
+            ymin = min(ymin, py[i, j])
+            ymax = max(ymax, py[i, j])
+        lo = max(np.floor(ymin - _SPAN_MARGIN), y0[i])
+        hi = min(np.floor(ymax + _SPAN_MARGIN) + 1, y1[i])
+        r0[i] = int(lo)
+        nr[i] = max(int(hi) - int(lo), 0)
+    return px, py, count, r0, nr
+
+
+@njit(cache=True, error_model="numpy")
+def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - compiled
+    """Per-row column spans ``[c0, c1)`` of the projected polygons of :func:`_clip_project`
+    (each polygon edge clipped to the row's strip widened by ``_SPAN_MARGIN``, as
+    ``binning._polygon_spans``), primitive-major then by row; empty spans are dropped.
+
+    Returns
+    -------
+    n : int
+    prim, row, c0, c1 : (total,) int64
+        The first ``n`` entries.
+    """
+    o_prim = np.empty(total, np.int64)
+    o_row = np.empty(total, np.int64)
+    o_c0 = np.empty(total, np.int64)
+    o_c1 = np.empty(total, np.int64)
+    n = 0
+    big = 1e30
+    for i in range(px.shape[0]):
+        cnt = count[i]
+        for row in range(r0[i], r0[i] + nr[i]):
+            if cnt < 0:  # no finite hull: the rectangle
+                c0, c1 = x0[i], x1[i]
+            else:
+                lo_y = row - _SPAN_MARGIN
+                hi_y = row + 1 + _SPAN_MARGIN
+                xmin, xmax = big, -big
+                for j in range(cnt):
+                    jn = j + 1 if j + 1 < cnt else 0
+                    xa, ya, xb, yb = px[i, j], py[i, j], px[i, jn], py[i, jn]
+                    dy = yb - ya
+                    if dy == 0:
+                        t_lo, t_hi = 0.0, 1.0
+                        hit = ya >= lo_y and ya <= hi_y
+                    else:
+                        inv = 1.0 / dy
+                        ta = (lo_y - ya) * inv
+                        tb = (hi_y - ya) * inv
+                        t_lo = max(min(ta, tb), 0.0)
+                        t_hi = min(max(ta, tb), 1.0)
+                        hit = t_lo <= t_hi
+                    if hit:
+                        xl = xa + t_lo * (xb - xa)
+                        xh = xa + t_hi * (xb - xa)
+                        xmin = min(xmin, xl, xh)
+                        xmax = max(xmax, xl, xh)
+                if xmin > xmax:
+                    continue
+                c0 = int(max(np.floor(xmin - _SPAN_MARGIN), x0[i]))
+                c1 = int(min(np.floor(xmax + _SPAN_MARGIN) + 1, x1[i]))
+            if c1 > c0:
+                o_prim[n] = i
+                o_row[n] = row
+                o_c0[n] = c0
+                o_c1[n] = c1
+                n += 1
+    return n, o_prim, o_row, o_c0, o_c1
+
+
+def _hull_spans(cam, x0, x1, y0, y1, hull, box):
+    """Candidate pixel spans ``(prim, row, c0, c1)`` of every primitive: what
+    ``binning._spans`` gives (its hull polygons clipped to the box and the near plane), in
+    compiled loops."""
+    bmin, bmax = (np.asarray(b, float) for b in box)
+    fwd = np.asarray(cam.forward, float)
+    eye = np.eye(3)
+    planes = np.array([row for ax in range(3)
+                       for row in (np.append(eye[ax], bmin[ax]), np.append(-eye[ax], -bmax[ax]))]
+                      + [np.append(fwd, float(fwd @ np.asarray(cam.position, float)) + _NEAR)])
+    th = float(np.tan(np.radians(cam.fov_y) / 2.0))
+    camv = np.concatenate([np.asarray(cam.position, float), fwd, np.asarray(cam.right, float),
+                           np.asarray(cam.image_up, float),
+                           [th, cam.width / cam.height, cam.width, cam.height]])
+    live = (x1 > x0) & (y1 > y0)
+    px, py, count, r0, nr = _clip_project(np.ascontiguousarray(hull, float), live, planes,
+                                          camv, x0, x1, y0, y1)
+    n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
+    return prim[:n], row[:n], c0[:n], c1[:n]
+
+
+def _blocker_table(blockers):
+    """The kernel's view of :class:`~psurf_core.geometry.Blockers`: (N, 27) float64, one row
+    per entry of ``blockers.bounds`` (spheres, boxes, quads, meshes: ``first_hit``'s order),
+    or ``None`` when the blockers carry no bounds (then the stage path runs).
+
+    Columns: 0 kind (``_SPHERE``, ...); 1-3 / 4-6 box ``lo`` / ``hi``; 7-10 plane ``(n, n .
+    p)`` (quads); from 11: sphere centre, radius | box min, max | quad corner, ``eu``, ``ev``,
+    ``eu x ev``, inverse Gram matrix (row-major). One array, not one per field: every array
+    argument of a compiled call costs reference counting.
+    """
+    if blockers.bounds is None or blockers.planes is None:
+        return None
+    n_all = blockers.bounds.shape[0]
+    blk = np.zeros((0 if blockers.empty else n_all, 27))
+    if blk.shape[0] == 0:
+        return blk
+    blk[:, 0] = _MESH
+    blk[:, 1:4] = blockers.bounds[:, 0]
+    blk[:, 4:7] = blockers.bounds[:, 1]
+    blk[:, 7:11] = np.nan_to_num(blockers.planes)
+    k = 0
+    for c, r in zip(blockers.sphere_c, blockers.sphere_r, strict=True):
+        blk[k, 0], blk[k, 11:14], blk[k, 14] = _SPHERE, c, r
+        k += 1
+    for lo, hi in zip(blockers.box_min, blockers.box_max, strict=True):
+        blk[k, 0], blk[k, 11:14], blk[k, 14:17] = _BOX, lo, hi
+        k += 1
+    for corner, eu, ev in blockers.quads:
+        g = np.linalg.inv(np.array([[eu @ eu, eu @ ev], [eu @ ev, ev @ ev]]))
+        blk[k, 0] = _QUAD
+        blk[k, 11:23] = np.concatenate([corner, eu, ev, np.cross(eu, ev)])
+        blk[k, 23:27] = g.ravel()
+        k += 1
+    return blk
+
+
+def plane_chunks(tech, prims, paths, rays, ctx) -> Iterator[tuple[Hits, np.ndarray]] | None:
+    """All hits of photon planes ``prims`` with ``rays`` and their per-photon contributions,
+    as ``(Hits, values (H, 3))`` chunks of at most ~``ctx.max_pairs`` candidate pairs.
+
+    Hits and values equal those of ``tech.intersect`` + ``tech.evaluate`` over
+    ``binning.candidate_pairs`` (hit order: primitive, row, pixel, ray). Returns ``None``
+    where the fused path does not apply (a few pixels only: binning's per-pixel branch; or
+    blockers without bounds), so the caller runs the stage path.
+    """
+    scene = ctx.scene
+    cam = scene.camera
+    bl = _blocker_table(ctx.blockers)
+    if bl is None:
+        return None
+    order, start, counts = _pixel_ray_table(rays, cam.n_pixels)
+    if np.count_nonzero(counts) <= 64:
+        return None
+    return _chunks(tech, prims, paths, rays, ctx, bl, order, start, counts)
+
+
+def _chunks(tech, prims, paths, rays, ctx, bl, order, start, counts):
+    scene = ctx.scene
+    cam = scene.camera
+    med = scene.medium
+    if len(prims) == 0 or len(rays) == 0:
+        return
+    box = (med.bounds_min, med.bounds_max)
+    x0, x1, y0, y1 = screen_rects(cam, prims.lo, prims.hi)
+    if prims.hull is not None:
+        s_prim, s_row, s_c0, s_c1 = _hull_spans(cam, x0, x1, y0, y1, prims.hull, box)
+    else:
+        spans = _spans(cam, x0, x1, y0, y1, None, box, ctx.max_pairs)
+        if spans is None:
+            return
+        s_prim, s_row, s_c0, s_c1 = spans
+    d = prims.data
+    c = np.ascontiguousarray
+    pinhole = rays.origin is not None
+    if pinhole:
+        from .planes import _plane_solver
+
+        if "m" not in d:
+            d.update(_plane_solver(d["x2"], d["w2"], d["w1"], rays.origin))
+        m, sdet = c(d["m"], float), c(d["sdet"], float)
+    else:
+        m, sdet = np.zeros((0, 3, 3)), np.zeros(0)
+    photon, K = prims.photon, prims.K
+    x2 = c(d["x2"], float)
+    # on_own_segment: x2 -> x1 is known clear (no test) when the photon's own segment K - 1
+    # is (prefix_ok) and, for K = 2, x2 (the light) lies in the box; plus t2 < T2 per hit.
+    pk = paths.prefix_ok
+    own = pk.reshape(-1)[photon * pk.shape[1] + (K - 1)].copy()
+    light = np.flatnonzero(own & (K == 2))
+    if light.size:
+        eps = 1e-9
+        own[light] = np.all((x2[light] >= med.bounds_min - eps)
+                            & (x2[light] <= med.bounds_max + eps), axis=1)
+    beta = c(paths.beta[photon, K - 1], float)
+    n_pix = (s_c1 - s_c0).astype(np.int64)
+    per_pix = max(int(counts.max()), 1)
+    bounds = _chunk_bounds(n_pix * per_pix, ctx.max_pairs)
+    args_tail = (x2, c(d["w2"], float), c(d["w1"], float), c(d["T2"], float),
+                 c(d["T1"], float), own, beta, bool(tech.short), float(med.sigma_t),
+                 float(med.sigma_s), float(med.phase.g), c(med.bounds_min, float),
+                 c(med.bounds_max, float), bl)
+    ray_o, ray_d = c(rays.o, float), c(rays.d, float)
+    s_min, s_max = c(rays.s_min, float), c(rays.s_max, float)
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        cap = int(n_pix[a:b].sum()) * per_pix
+        n, n_defer, ray, prim, s, t1, t2, ndp, val, st = _plane_kernel(
+            c(s_prim[a:b]), c(s_row[a:b]), c(s_c0[a:b]), c(s_c1[a:b]), int(cam.width),
+            order, start, counts, ray_o, ray_d, s_min, s_max, pinhole, m, sdet,
+            *args_tail, cap)
+        if n == 0:
+            continue
+        ray, prim, s, t1, t2, ndp, val, st = (x[:n] for x in (ray, prim, s, t1, t2, ndp, val, st))
+        if n_defer:
+            defer = np.flatnonzero(np.any(st == _DEFER, axis=1))
+            _resolve(ctx.blockers, rays, prims, ray[defer], prim[defer], s[defer], t2[defer],
+                     st[defer], val, defer)
+        yield Hits(ray, prim, s, dict(t2=t2, t1=t1, n_dot_psi=ndp)), val
+
+
+def _resolve(blockers, rays, prims, ray, prim, s, t2, st, val, rows):
+    """Exact shadow tests (:meth:`Blockers.occluded`) of the deferred segments; zero the
+    values of the rows (``rows`` of ``val``) found blocked."""
+    d = prims.data
+    x2 = d["x2"][prim]
+    x1 = x2 + t2[:, None] * d["w2"][prim]
+    x0 = rays.o[ray] + s[:, None] * rays.d[ray]
+    ok = st[:, 0] != _BLOCKED
+    ok &= st[:, 1] != _BLOCKED
+    for k, (a, b) in enumerate(((x2, x1), (x1, x0))):
+        idx = np.flatnonzero(ok & (st[:, k] == _DEFER))
+        if idx.size:
+            ok[idx] = ~blockers.occluded(a[idx], b[idx])
+    val[rows[~ok]] = 0.0
