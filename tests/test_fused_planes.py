@@ -93,3 +93,22 @@ def test_render_pass_uses_fused_and_matches_stages(monkeypatch):
     stage = render_pass(scene, est, 0, 3, settings, tally=tally)
     assert n_fused == sum(seen) > 0
     np.testing.assert_allclose(fused, stage, rtol=1e-12, atol=1e-300)
+
+
+def test_compiled_screen_rects_equal_binning():
+    """The compiled pixel rectangles equal ``binning.screen_rects`` on finite boxes (what
+    clipped primitive bounds are), including empty boxes and boxes reaching behind the
+    camera."""
+    from psurf_core.binning import screen_rects
+    from psurf_core.techniques.planes_fused import _camera_vector, _screen_rects
+
+    for path in SCENES:
+        cam = load_scene(path).camera
+        rng = np.random.default_rng(5)
+        lo = cam.position + rng.uniform(-8, 8, (500, 3))
+        hi = lo + rng.uniform(-0.5, 4, (500, 3))
+        want = screen_rects(cam, lo, hi)
+        got = _screen_rects(lo, hi, _camera_vector(cam))
+        assert np.any(want[1] > want[0]) and np.any(want[1] == want[0])
+        for w, g in zip(want, got, strict=True):
+            np.testing.assert_array_equal(g, w)

@@ -67,9 +67,11 @@ def _occluded(a0, a1, a2, b0, b1, b2, blk):  # pragma: no cover - compiled
             # geometry._crosses_plane
             da = a0 * blk[k, 7] + a1 * blk[k, 8] + a2 * blk[k, 9] - blk[k, 10]
             db = b0 * blk[k, 7] + b1 * blk[k, 8] + b2 * blk[k, 9] - blk[k, 10]
-            ln = np.sqrt((b0 - a0) ** 2 + (b1 - a1) ** 2 + (b2 - a2) ** 2)
-            t = da / (da - db) * ln
-            meet = da * db <= 0.0 and t >= 0.5 * SHADOW_EPS and t <= ln - 0.5 * SHADOW_EPS
+            meet = da * db <= 0.0
+            if meet:  # only then the distance (a square root and a division)
+                ln = np.sqrt((b0 - a0) ** 2 + (b1 - a1) ** 2 + (b2 - a2) ** 2)
+                t = da / (da - db) * ln
+                meet = t >= 0.5 * SHADOW_EPS and t <= ln - 0.5 * SHADOW_EPS
         if meet:
             near = True
             if blk[k, 0] == _MESH:
@@ -261,6 +263,76 @@ def _plane_kernel(span_prim, span_row, span_c0, span_c1, width, order, start, co
 
 
 @njit(cache=True, error_model="numpy")
+def _project(x, y, z, cam):  # pragma: no cover - compiled
+    """``camera.project`` of one point; ``cam`` as in :func:`_hull_spans`."""
+    vx, vy, vz = x - cam[0], y - cam[1], z - cam[2]
+    depth = vx * cam[3] + vy * cam[4] + vz * cam[5]
+    u = (vx * cam[6] + vy * cam[7] + vz * cam[8]) / (depth * cam[12] * cam[13])
+    w = (vx * cam[9] + vy * cam[10] + vz * cam[11]) / (depth * cam[12])
+    return (u + 1.0) * 0.5 * cam[14], (1.0 - w) * 0.5 * cam[15], depth
+
+
+@njit(cache=True, error_model="numpy")
+def _clip_int(v, hi):  # pragma: no cover - compiled
+    """``np.clip(np.nan_to_num(v), 0, hi).astype(int64)`` of one value."""
+    if np.isnan(v):
+        return 0
+    return int(min(max(v, 0.0), hi))
+
+
+@njit(cache=True, error_model="numpy")
+def _corner(lo, hi, upper):  # pragma: no cover - compiled
+    """One coordinate of a box corner; a non-finite bound stands for -+1e30."""
+    if upper:
+        return hi if np.isfinite(hi) else 1e30
+    return lo if np.isfinite(lo) else -1e30
+
+
+@njit(cache=True, error_model="numpy")
+def _screen_rects(lo, hi, cam):  # pragma: no cover - compiled
+    """``binning.screen_rects`` (conservative pixel rectangles of finite boxes
+    ``[lo, hi]``)."""
+    m = lo.shape[0]
+    w, h = cam[14], cam[15]
+    x0 = np.zeros(m, np.int64)
+    x1 = np.zeros(m, np.int64)
+    y0 = np.zeros(m, np.int64)
+    y1 = np.zeros(m, np.int64)
+    for i in range(m):
+        empty = False
+        for ax in range(3):
+            if not (lo[i, ax] <= hi[i, ax]):
+                empty = True
+        behind, all_behind = False, True
+        xmin, xmax, ymin, ymax = np.nan, np.nan, np.nan, np.nan
+        for corner in range(8):
+            cx = _corner(lo[i, 0], hi[i, 0], (corner >> 2) & 1)
+            cy = _corner(lo[i, 1], hi[i, 1], (corner >> 1) & 1)
+            cz = _corner(lo[i, 2], hi[i, 2], corner & 1)
+            px, py, depth = _project(cx, cy, cz, cam)
+            if depth <= 1e-9:
+                behind = True
+            else:
+                all_behind = False
+            # nanmin / nanmax
+            if not np.isnan(px):
+                xmin = px if np.isnan(xmin) else min(xmin, px)
+                xmax = px if np.isnan(xmax) else max(xmax, px)
+            if not np.isnan(py):
+                ymin = py if np.isnan(ymin) else min(ymin, py)
+                ymax = py if np.isnan(ymax) else max(ymax, py)
+        if behind:
+            xmin, xmax, ymin, ymax = 0.0, w, 0.0, h
+        x0[i] = _clip_int(np.floor(xmin) - 1, w)
+        x1[i] = _clip_int(np.ceil(xmax) + 1, w)
+        y0[i] = _clip_int(np.floor(ymin) - 1, h)
+        y1[i] = _clip_int(np.ceil(ymax) + 1, h)
+        if empty or all_behind:
+            x1[i] = x0[i]
+    return x0, x1, y0, y1
+
+
+@njit(cache=True, error_model="numpy")
 def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
     """Per primitive: the hull polygon clipped to ``planes`` (rows ``(n, offset)``: keep
     ``x . n >= offset``; Sutherland-Hodgman as ``binning.clip_polygons``), projected to
@@ -292,8 +364,17 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
             nr[i] = y1[i] - y0[i]
             continue
         n = v
-        a[:v] = hull[i]
+        for j in range(v):
+            for c in range(3):
+                a[j, c] = hull[i, j, c]
         for k in range(planes.shape[0]):
+            inside = True
+            for j in range(n):
+                if (a[j, 0] * planes[k, 0] + a[j, 1] * planes[k, 1] + a[j, 2] * planes[k, 2]
+                        - planes[k, 3]) < 0:
+                    inside = False
+            if inside:  # the usual case: nothing to clip
+                continue
             out = 0
             for j in range(n):
                 jn = j + 1 if j + 1 < n else 0
@@ -310,7 +391,9 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
                         b[out, c] = a[j, c] + f * (a[jn, c] - a[j, c])
                     out += 1
             n = out
-            a[:n] = b[:n]
+            for j in range(n):
+                for c in range(3):
+                    a[j, c] = b[j, c]
             if n == 0:
                 break
         count[i] = n
@@ -318,14 +401,7 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
             continue
         ymin, ymax = np.inf, -np.inf
         for j in range(n):
-            vx = a[j, 0] - cam[0]
-            vy = a[j, 1] - cam[1]
-            vz = a[j, 2] - cam[2]
-            depth = vx * cam[3] + vy * cam[4] + vz * cam[5]
-            x = (vx * cam[6] + vy * cam[7] + vz * cam[8]) / (depth * cam[12] * cam[13])
-            y = (vx * cam[9] + vy * cam[10] + vz * cam[11]) / (depth * cam[12])
-            px[i, j] = (x + 1.0) * 0.5 * cam[14]
-            py[i, j] = (1.0 - y) * 0.5 * cam[15]
+            px[i, j], py[i, j], _ = _project(a[j, 0], a[j, 1], a[j, 2], cam)
             ymin = min(ymin, py[i, j])
             ymax = max(ymax, py[i, j])
         lo = max(np.floor(ymin - _SPAN_MARGIN), y0[i])
@@ -394,23 +470,33 @@ def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - comp
     return n, o_prim, o_row, o_c0, o_c1
 
 
-def _hull_spans(cam, x0, x1, y0, y1, hull, box):
+def _camera_vector(cam) -> np.ndarray:
+    """(16,) float: position, forward, right, image-up, ``tan(fov_y / 2)``, aspect, width,
+    height (what the compiled projection reads)."""
+    th = float(np.tan(np.radians(cam.fov_y) / 2.0))
+    return np.concatenate([np.asarray(cam.position, float), np.asarray(cam.forward, float),
+                           np.asarray(cam.right, float), np.asarray(cam.image_up, float),
+                           [th, cam.width / cam.height, cam.width, cam.height]])
+
+
+def _hull_spans(cam, lo, hi, hull, box):
     """Candidate pixel spans ``(prim, row, c0, c1)`` of every primitive: what
-    ``binning._spans`` gives (its hull polygons clipped to the box and the near plane), in
-    compiled loops."""
+    ``binning.screen_rects`` + ``binning._spans`` give (hull polygons clipped to the box and
+    the near plane, within the screen rectangles of ``[lo, hi]``), in compiled loops."""
     bmin, bmax = (np.asarray(b, float) for b in box)
     fwd = np.asarray(cam.forward, float)
     eye = np.eye(3)
     planes = np.array([row for ax in range(3)
                        for row in (np.append(eye[ax], bmin[ax]), np.append(-eye[ax], -bmax[ax]))]
                       + [np.append(fwd, float(fwd @ np.asarray(cam.position, float)) + _NEAR)])
-    th = float(np.tan(np.radians(cam.fov_y) / 2.0))
-    camv = np.concatenate([np.asarray(cam.position, float), fwd, np.asarray(cam.right, float),
-                           np.asarray(cam.image_up, float),
-                           [th, cam.width / cam.height, cam.width, cam.height]])
+    camv = _camera_vector(cam)
+    c = np.ascontiguousarray
+    if np.isfinite(lo).all() and np.isfinite(hi).all():
+        x0, x1, y0, y1 = _screen_rects(c(lo, float), c(hi, float), camv)
+    else:  # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored
+        x0, x1, y0, y1 = screen_rects(cam, lo, hi)
     live = (x1 > x0) & (y1 > y0)
-    px, py, count, r0, nr = _clip_project(np.ascontiguousarray(hull, float), live, planes,
-                                          camv, x0, x1, y0, y1)
+    px, py, count, r0, nr = _clip_project(c(hull, float), live, planes, camv, x0, x1, y0, y1)
     n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
     return prim[:n], row[:n], c0[:n], c1[:n]
 
@@ -478,10 +564,10 @@ def _chunks(tech, prims, paths, rays, ctx, bl, order, start, counts):
     if len(prims) == 0 or len(rays) == 0:
         return
     box = (med.bounds_min, med.bounds_max)
-    x0, x1, y0, y1 = screen_rects(cam, prims.lo, prims.hi)
     if prims.hull is not None:
-        s_prim, s_row, s_c0, s_c1 = _hull_spans(cam, x0, x1, y0, y1, prims.hull, box)
+        s_prim, s_row, s_c0, s_c1 = _hull_spans(cam, prims.lo, prims.hi, prims.hull, box)
     else:
+        x0, x1, y0, y1 = screen_rects(cam, prims.lo, prims.hi)
         spans = _spans(cam, x0, x1, y0, y1, None, box, ctx.max_pairs)
         if spans is None:
             return
