@@ -112,3 +112,26 @@ def test_compiled_screen_rects_equal_binning():
         assert np.any(want[1] > want[0]) and np.any(want[1] == want[0])
         for w, g in zip(want, got, strict=True):
             np.testing.assert_array_equal(g, w)
+
+
+def test_ctrl_c_inside_the_kernel_stays_a_keyboard_interrupt():
+    """A SIGINT handled while numba boxes a result arrives as a chain of SystemErrors caused
+    by the KeyboardInterrupt (seen with ``render --checkpoint``); the fused path turns it back
+    into the KeyboardInterrupt, other SystemErrors pass through."""
+    from psurf_core.techniques.planes_fused import _interrupted
+
+    def chain(root):
+        try:
+            try:
+                try:
+                    raise root
+                except BaseException as e:
+                    raise SystemError("returned a result with an exception set") from e
+            except SystemError as e:
+                raise SystemError("returned a result with an exception set") from e
+        except SystemError as e:
+            return e
+
+    assert _interrupted(chain(KeyboardInterrupt()))
+    assert not _interrupted(chain(ValueError("x")))
+    assert not _interrupted(SystemError("plain"))

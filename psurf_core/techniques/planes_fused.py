@@ -557,7 +557,34 @@ def plane_chunks(tech, prims, paths, rays, ctx) -> Iterator[tuple[Hits, np.ndarr
     return _chunks(tech, prims, paths, rays, ctx, bl, order, start, counts)
 
 
+def _interrupted(e: BaseException) -> bool:
+    """Was ``e`` caused (at any depth) by a KeyboardInterrupt?"""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
+
+
 def _chunks(tech, prims, paths, rays, ctx, bl, order, start, counts):
+    """:func:`_fused_chunks`, with Ctrl-C kept a KeyboardInterrupt.
+
+    A SIGINT whose Python handler runs while a compiled function returns (numba boxing its
+    result) surfaces as ``SystemError: ... returned a result with an exception set``, caused
+    by the KeyboardInterrupt; callers (``render --checkpoint``: save and exit 130) must see
+    the Ctrl-C itself.
+    """
+    try:
+        yield from _fused_chunks(tech, prims, paths, rays, ctx, bl, order, start, counts)
+    except SystemError as e:
+        if _interrupted(e):
+            raise KeyboardInterrupt from None
+        raise
+
+
+def _fused_chunks(tech, prims, paths, rays, ctx, bl, order, start, counts):
     scene = ctx.scene
     cam = scene.camera
     med = scene.medium
