@@ -319,6 +319,7 @@ def _demo_offline(scene, args) -> int:
             tmp, cols_img, cols_var, title=f"{os.path.basename(scene.path)}: mean images (one "
                                            f"exposure) and per-pass variance (one scale)"))])
         written.append(cpng)
+    written += _demo_screenshots(scene, args)
 
     for p in written:
         print(p)
@@ -336,6 +337,38 @@ def _demo_offline(scene, args) -> int:
                          f"{_k_range(scene)} (whole-range reference mean {ref.mean.mean():.4g})")
         print(line)
     return 0 if results else 1
+
+
+#: What the headless demo shows of the window: its five stages for the centre pixel.
+DEMO_SCREENSHOT_ESTIMATOR = "planes"
+
+
+def _demo_screenshots(scene, args) -> list:
+    """The window's five stages (``app_<stage>.png``, off-screen) for the scene's centre
+    pixel: what ``make demo`` would have shown with a display. Returns the paths written; an
+    off-screen renderer that is missing costs a note, not the demo."""
+    try:
+        import pyvista
+
+        pyvista.OFF_SCREEN = True
+        from ui.stepper import STAGES
+        from ui.window import screenshot
+    except (ImportError, RuntimeError) as e:
+        _note(f"no app screenshots: off-screen rendering is unavailable ({e})")
+        return []
+    cam = scene.camera
+    pixel = (cam.width // 2, cam.height // 2)
+    out = []
+    for stage in STAGES:
+        path = os.path.join(args.out, f"app_{stage}.png")
+        try:
+            screenshot(scene.path, stage, pixel, DEMO_SCREENSHOT_ESTIMATOR, 0, path,
+                       photons=min(args.photons, 2000), passes=2)
+        except (ImportError, RuntimeError) as e:
+            _note(f"no app screenshots: off-screen rendering failed ({e})")
+            break
+        out.append(path)
+    return out
 
 
 def _min_k(est) -> int:

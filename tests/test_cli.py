@@ -234,6 +234,9 @@ def test_demo_writes_images(tmp_path):
     names = {f"{k}_{e}.{x}" for e in ("planes", "reference")
              for k, x in (("render", "png"), ("variance", "png"), ("render", "npz"))}
     names.add("comparison.png")
+    # ... and the window's five stages, off-screen (what a display would have shown).
+    names |= {f"app_{s}.png" for s in ("trace", "create", "intersect", "evaluate",
+                                        "reconstruct")}
     assert names <= {p.name for p in out.iterdir()}
     for n in names:
         assert str(Path("demo") / n) in r.stdout

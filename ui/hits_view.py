@@ -4,6 +4,8 @@ evaluate table and the reconstructed path (pyvista; the numbers come from
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 import pyvista as pv
 
@@ -265,20 +267,30 @@ def _short(name: str, n: int = 13) -> str:
 def evaluate_table_text(inspection, max_rows: int = TABLE_ROWS) -> str:
     """The evaluate table as monospace text (largest contributions first).
 
-    Columns: display index, technique, K, distance ``s``, ``|n.psi|``, ``f = value |n.psi|``,
-    MIS weight ``w`` and the contribution (mean over RGB); ``!`` marks a near-singular hit,
-    ``x`` one whose path is invalid (Evaluate returned 0: occluded, or a vertex outside).
+    Columns: display index, technique and primitive id (its row in that technique's
+    primitives of the hit's photon batch), K, distance ``s``, ``|n.psi|``, the Jacobian factor
+    ``1/|n.psi|``, ``f = value |n.psi|``, MIS weight ``w`` and the contribution (mean over
+    RGB); ``!`` marks a near-singular hit, ``x`` one whose path is invalid (Evaluate returned
+    0: occluded, or a vertex outside). A first line names each technique's family.
     """
     t = inspection.table
     px, py = inspection.pixel_xy
+    fam: dict = {}
+    for n, f in zip(t.technique, t.family, strict=True):
+        fam.setdefault(str(f), {})[_short(str(n), 12)] = None
     lines = [f"pixel ({px}, {py})  pass {inspection.pass_index}  "
-             f"{len(t)} hits  {inspection.n_photons} photons",
-             " #  technique      K     s    |n.psi|     f     w   contrib"]
+             f"{len(t)} hits  {inspection.n_photons} photons"]
+    lines += textwrap.wrap("; ".join(f"{f}: {' '.join(ns)}" for f, ns in fam.items()) or "-",
+                           width=74, initial_indent="families: ", subsequent_indent="  ")
+    lines.append(" # technique   prim  K     s    |n.psi| 1/|n.psi|    f     w   contrib")
     order = hit_order(inspection)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        jac = 1.0 / t.n_dot_psi
     for i, r in enumerate(order[:max_rows]):
         mark = "x" if not np.any(t.value[r]) else ("!" if t.near_singular[r] else " ")
-        lines.append(f"{i:2d}{mark}{_short(str(t.technique[r])):<13s} {int(t.K[r]):2d} "
-                     f"{t.s[r]:6.3f} {_g(t.n_dot_psi[r])} {_g(float(np.mean(t.f[r])))} "
+        lines.append(f"{i:2d}{mark}{_short(str(t.technique[r]), 12):<12s}{int(t.prim[r]):4d} "
+                     f"{int(t.K[r]):2d} {t.s[r]:6.3f} {_g(t.n_dot_psi[r])} {_g(jac[r])} "
+                     f"{_g(float(np.mean(t.f[r])))} "
                      f"{t.mis_weight[r]:4.2f} {_g(float(np.mean(t.contribution[r])))}")
     if len(t) > max_rows:
         rest = order[max_rows:]
