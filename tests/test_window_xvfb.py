@@ -44,6 +44,9 @@ def test_window_opens_steps_picks_and_closes(tmp_path):
     env = dict(os.environ, PSURF_WINDOW_SCRIPT=script, PSURF_WINDOW_SIZE="800,450",
                MPLBACKEND="Agg")
     env.pop("DISPLAY", None)
+    # ui/__init__ (imported by earlier tests in this process, which has no display) chose
+    # VTK's EGL window; the child has Xvfb's display and must pick the X window itself.
+    env.pop("VTK_DEFAULT_OPENGL_WINDOW", None)
     proc = subprocess.run(
         ["xvfb-run", "-a", "-s", "-screen 0 1700x1000x24", sys.executable,
          str(ROOT / "app.py"), str(ROOT / "scenes" / "area.toml")],
