@@ -13,6 +13,7 @@ import os
 import sys
 import textwrap
 
+from ui.cli import _pixel
 from ui.render_cli import (  # noqa: F401 - DEFAULT_* and CliError are part of app's interface
     DEFAULT_PASSES,
     DEFAULT_PHOTONS,
@@ -118,7 +119,7 @@ def build_parser() -> Parser:
                         "is the one the stages inspect; default planes)")
     d.add_argument("--reference", default=None, metavar="FILE.npz",
                    help="window: an app.py render .npz of SCENE; relMSE under each render")
-    d.add_argument("--pixel", default=None, type=_window_pixel, metavar="X,Y",
+    d.add_argument("--pixel", default=None, type=_pixel, metavar="X,Y",
                    help="window: the pixel the stages inspect (X column from the left, Y row "
                         "from the top; default the centre)")
     d.add_argument("--no-window", action="store_true",
@@ -188,18 +189,6 @@ def _demo_scene_path(arg: str | None) -> str:
 def _k_range(scene, min_k: int = 1) -> str:
     lo = max(scene.min_scatter, min_k)
     return f"K in [{lo}, {'inf' if scene.max_scatter == -1 else scene.max_scatter}]"
-
-
-def _window_pixel(text: str) -> tuple[int, int]:
-    """``--pixel X,Y``: two non-negative integers."""
-    parts = text.split(",")
-    try:
-        x, y = (int(v) for v in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y (two integers), got {text!r}") from None
-    if x < 0 or y < 0:
-        raise argparse.ArgumentTypeError(f"X and Y must be >= 0, got {text!r}")
-    return x, y
 
 
 def _window_specs(text: str | None, scene) -> list | None:

@@ -24,6 +24,7 @@ import argparse
 import os
 import sys
 
+from ui.cli import _pair, _pixel
 from ui.render_cli import (
     CliError,
     check_output,
@@ -56,23 +57,8 @@ def _specs(text: str) -> list[str]:
     return specs
 
 
-def _pair(text: str, what: str, minimum: int) -> tuple[int, int]:
-    parts = text.replace("x", ",").split(",")
-    try:
-        a, b = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
-    if a < minimum or b < minimum:
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
-    return a, b
-
-
 def _size(text: str) -> tuple[int, int]:
     return _pair(text, "W,H (two integers >= 160)", 160)
-
-
-def _pixel(text: str) -> tuple[int, int]:
-    return _pair(text, "X,Y (two integers >= 0)", 0)
 
 
 def _common(p: argparse.ArgumentParser) -> None:
