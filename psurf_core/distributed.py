@@ -21,7 +21,6 @@ Time-budget mode keeps at most ``2 x workers`` passes in flight, stops submittin
 from __future__ import annotations
 
 import logging
-import time
 from collections.abc import Callable
 from contextlib import contextmanager
 
@@ -29,6 +28,7 @@ import numpy as np
 
 from .accumulate import Welford
 from .estimators import Estimator, parse_estimator
+from .parallel import merge_in_pass_order
 from .render import RenderResult, RenderSettings, render_pass
 from .scene import Scene
 
@@ -187,45 +187,13 @@ def render_distributed(
     window = max_in_flight if max_in_flight is not None else 2 * _n_workers(client)
     window = max(1, int(window))
 
-    t0 = time.perf_counter()
     scene_f = client.scatter(scene, broadcast=True, hash=False)
-    done_before = acc.n
-    next_i = acc.n
-    in_flight: dict[int, object] = {}
-    finished: dict[int, np.ndarray] = {}
-    submitting = True
-    try:
-        while True:
-            while submitting and len(in_flight) < window and (passes is None or next_i < passes):
-                in_flight[next_i] = client.submit(_pass_task, scene_f, spec, next_i, seed,
-                                                  settings, pure=False)
-                next_i += 1
-            if not in_flight:
-                break
-            with client.as_current():  # wait() looks for a current client
-                wait(list(in_flight.values()), return_when="FIRST_COMPLETED")
-            for i in sorted(in_flight):
-                f = in_flight[i]
-                if f.done():
-                    finished[i] = f.result()  # re-raises a worker's exception
-                    del in_flight[i]
-            stop = False
-            while acc.n in finished:
-                i = acc.n
-                acc.add(finished.pop(i))
-                elapsed = time.perf_counter() - t0
-                if on_pass is not None and on_pass(i, acc, elapsed) is False:
-                    stop = True
-                    break
-            if stop:
-                break
-            elapsed = time.perf_counter() - t0
-            if time_budget is not None and elapsed >= time_budget and next_i > done_before:
-                submitting = False
-            if passes is not None and acc.n >= passes:
-                break
-    finally:
-        for f in in_flight.values():
-            f.cancel()
-    return RenderResult(acc.mean.copy(), acc.variance, acc.n, settings.photons, settings.spp,
-                        time.perf_counter() - t0, spec, seed, acc)
+
+    def wait_any(futures):
+        with client.as_current():  # wait() looks for a current client
+            wait(futures, return_when="FIRST_COMPLETED")
+
+    return merge_in_pass_order(
+        lambda i: client.submit(_pass_task, scene_f, spec, i, seed, settings, pure=False),
+        wait_any, acc, window, spec, seed, settings, passes=passes, time_budget=time_budget,
+        on_pass=on_pass)

@@ -115,6 +115,22 @@ def render_parallel(
     cam = scene.camera
     acc = accumulator if accumulator is not None else Welford.empty((cam.height, cam.width, 3))
     window = 2 * max(1, getattr(pool, "_max_workers", jobs))
+    return merge_in_pass_order(
+        lambda i: pool.submit(_pass_task, scene, spec, i, seed, settings),
+        lambda fs: wait(fs, return_when=FIRST_COMPLETED), acc, window, spec, seed, settings,
+        passes=passes, time_budget=time_budget, on_pass=on_pass)
+
+
+def merge_in_pass_order(submit, wait_any, acc: Welford, window: int, spec: str, seed: int,
+                        settings: RenderSettings, *, passes=None, time_budget=None,
+                        on_pass=None) -> RenderResult:
+    """Keep up to ``window`` passes in flight and add them to ``acc`` in pass order (the
+    local pool here, Dask in :mod:`psurf_core.distributed`): the result equals a serial
+    render with the same seed, whatever order the passes finish in.
+
+    ``submit(i)`` starts pass ``i`` and returns a future; ``wait_any(futures)`` blocks until
+    one of them is done. A worker's exception is re-raised; pending futures are cancelled.
+    """
     t0 = time.perf_counter()
     done_before = next_i = acc.n
     in_flight: dict[int, object] = {}
@@ -123,11 +139,11 @@ def render_parallel(
     try:
         while True:
             while submitting and len(in_flight) < window and (passes is None or next_i < passes):
-                in_flight[next_i] = pool.submit(_pass_task, scene, spec, next_i, seed, settings)
+                in_flight[next_i] = submit(next_i)
                 next_i += 1
             if not in_flight:
                 break
-            wait(list(in_flight.values()), return_when=FIRST_COMPLETED)
+            wait_any(list(in_flight.values()))
             for i in sorted(in_flight):
                 if in_flight[i].done():
                     finished[i] = in_flight.pop(i).result()  # re-raises a worker's exception
