@@ -29,7 +29,7 @@ import numpy as np
 from .accumulate import Welford
 from .estimators import Estimator, parse_estimator
 from .parallel import merge_in_pass_order
-from .render import RenderResult, RenderSettings, render_pass
+from .render import RenderResult, RenderSettings, render_pass, warm_up
 from .scene import Scene
 
 __all__ = ["DistributedError", "cluster_client", "render_distributed"]
@@ -46,6 +46,11 @@ def _pass_task(scene: Scene, spec: str, pass_index: int, seed: int,
                settings: RenderSettings) -> np.ndarray:
     """Run on a worker: one pass's (H, W, 3) float64 image."""
     return render_pass(scene, parse_estimator(spec, scene), pass_index, seed, settings)
+
+
+def _warm_worker(scene: Scene, spec: str, settings: RenderSettings) -> None:
+    """Run on each worker by ``client.run``: :func:`~psurf_core.render.warm_up`."""
+    warm_up(scene, parse_estimator(spec, scene), settings)
 
 
 def _worker_version() -> str:
@@ -188,6 +193,9 @@ def render_distributed(
     window = max(1, int(window))
 
     scene_f = client.scatter(scene, broadcast=True, hash=False)
+    if time_budget is not None:
+        # Every worker compiles/loads the estimator's compiled kernels before the clock runs.
+        client.run(_warm_worker, scene, spec, settings)
 
     def wait_any(futures):
         with client.as_current():  # wait() looks for a current client

@@ -17,6 +17,7 @@ queued and re-raises.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import time
 from collections.abc import Callable
@@ -26,10 +27,10 @@ import numpy as np
 
 from .accumulate import Welford
 from .estimators import Estimator, parse_estimator
-from .render import RenderResult, RenderSettings, render_pass
+from .render import RenderResult, RenderSettings, render_pass, warm_up
 from .scene import Scene
 
-__all__ = ["pass_pool", "render_parallel"]
+__all__ = ["pass_pool", "render_parallel", "warm_pool"]
 
 
 def _ignore_sigint() -> None:
@@ -58,6 +59,26 @@ def _pass_task(scene: Scene, spec: str, pass_index: int, seed: int,
                settings: RenderSettings) -> np.ndarray:
     """Run in a worker: one pass's (H, W, 3) float64 image."""
     return render_pass(scene, parse_estimator(spec, scene), pass_index, seed, settings)
+
+
+def _warm_task(scene: Scene, spec: str, settings: RenderSettings) -> int:
+    """Run in a worker: :func:`~psurf_core.render.warm_up` (imports, compiled kernels)."""
+    warm_up(scene, parse_estimator(spec, scene), settings)
+    time.sleep(0.05)  # hold this worker so the next warm-up task goes to another one
+    return os.getpid()
+
+
+def warm_pool(pool: Executor, scene: Scene, spec: str, settings: RenderSettings) -> None:
+    """Start ``pool``'s workers and warm each up for ``spec`` before a time budget starts.
+
+    Spawned workers import numpy and psurf_core (about a second) and compile or load the
+    estimator's compiled kernels; one task per worker pays that outside the clock (a task
+    goes to whichever worker is idle, so a worker may rarely be warmed twice and another
+    left to warm itself on its first pass).
+    """
+    n = max(1, getattr(pool, "_max_workers", 1))
+    for f in [pool.submit(_warm_task, scene, spec, settings) for _ in range(n)]:
+        f.result()
 
 
 def render_parallel(
@@ -115,6 +136,8 @@ def render_parallel(
     cam = scene.camera
     acc = accumulator if accumulator is not None else Welford.empty((cam.height, cam.width, 3))
     window = 2 * max(1, getattr(pool, "_max_workers", jobs))
+    if time_budget is not None:
+        warm_pool(pool, scene, spec, settings)
     return merge_in_pass_order(
         lambda i: pool.submit(_pass_task, scene, spec, i, seed, settings),
         lambda fs: wait(fs, return_when=FIRST_COMPLETED), acc, window, spec, seed, settings,

@@ -135,3 +135,35 @@ def test_ctrl_c_inside_the_kernel_stays_a_keyboard_interrupt():
     assert _interrupted(chain(KeyboardInterrupt()))
     assert not _interrupted(chain(ValueError("x")))
     assert not _interrupted(SystemError("plain"))
+
+
+def test_a_time_budget_warms_the_kernel_up_first_without_changing_the_image(monkeypatch):
+    """``render(time_budget=...)`` compiles/loads the kernel before its clock starts (a cold
+    numba compile took the whole 1 s budget of an equal-time comparison on CI), through a
+    throw-away pass that changes nothing in the image; ``passes=`` renders skip it."""
+    import psurf_core.render as rmod
+
+    scene = load_scene(SCENES[[p.stem for p in SCENES].index("area_occluder")])
+    scene = replace(scene, camera=replace(scene.camera, width=24, height=16))
+    est = parse_estimator("planes", scene)
+    settings = RenderSettings(photons=200)
+    warmed_passes = []
+    real_pass = rmod.render_pass
+
+    def counting_pass(sc, *a, **k):
+        warmed_passes.append((sc.camera.width, sc.camera.height))
+        return real_pass(sc, *a, **k)
+
+    monkeypatch.setattr(rmod, "_WARMED", set())
+    monkeypatch.setattr(rmod, "render_pass", counting_pass)
+    plain = rmod.render(scene, est, settings, passes=1, seed=4)
+    assert warmed_passes == [(24, 16)] and rmod._WARMED == set()
+    timed = rmod.render(scene, est, settings, time_budget=1e-9, seed=4)
+    assert warmed_passes[1:] == [rmod._WARM_SIZE, (24, 16)]
+    assert {t.name for t in est.techniques} <= rmod._WARMED
+    assert timed.passes == 1 and np.array_equal(timed.mean, plain.mean)
+    rmod.render(scene, est, settings, time_budget=1e-9, seed=4)  # warmed once per process
+    assert warmed_passes[3:] == [(24, 16)]
+    reference = parse_estimator("reference", scene)
+    rmod.warm_up(scene, reference, settings)
+    assert len(warmed_passes) == 4
