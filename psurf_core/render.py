@@ -236,22 +236,20 @@ def warm_up(scene: Scene, estimator: Estimator, settings: RenderSettings) -> Non
     """Compile (or load from numba's cache) the compiled kernels ``estimator`` uses, so a
     wall-time budget started afterwards buys passes only.
 
-    A technique marked ``compiled`` costs seconds on its first call in a process (~11 s
-    when numba compiles, ~1 s when it loads its cache): charged to a time budget, it would
-    hand an equal-time comparison to whichever estimator is not compiled. This runs one
-    throw-away pass of ``scene`` at 32x24 pixels and 256 photons (nothing is returned or
-    kept; the pass's seed is unrelated to any render's). Does nothing when no technique is
-    compiled or this process already warmed this estimator's techniques.
+    Compiled code costs seconds on its first call in a process (~11 s when numba compiles,
+    ~1 s when it loads its cache): charged to a time budget, it would hand an equal-time
+    comparison to whichever estimator is not compiled. This runs one throw-away pass of
+    ``scene`` at 32x24 pixels and 256 photons (nothing is kept; its seed is unrelated to any
+    render's), once per process and estimator spec; the path tracer is skipped.
     """
-    todo = [t for t in estimator.techniques if t.compiled and t.name not in _WARMED]
-    if not todo or estimator.reference:
+    if estimator.reference or estimator.spec in _WARMED:
         return
     from dataclasses import replace
 
     w, h = _WARM_SIZE
     small = replace(scene, camera=replace(scene.camera, width=w, height=h))
     render_pass(small, estimator, 0, 0, replace(settings, photons=_WARM_PHOTONS, spp=1))
-    _WARMED.update(t.name for t in todo)
+    _WARMED.add(estimator.spec)
 
 
 _WARMED: set[str] = set()

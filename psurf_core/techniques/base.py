@@ -119,10 +119,6 @@ class Technique:
         Scatter counts the technique can produce (``max_k`` None: unbounded).
     lights : tuple of str
         Light kinds it applies to.
-    compiled : bool
-        Runs compiled (numba) code whose first call in a process compiles it or loads it
-        from the on-disk cache; :func:`psurf_core.render.warm_up` pays that before a clock
-        starts.
     """
 
     name = "?"
@@ -132,7 +128,6 @@ class Technique:
     max_k: int | None = None
     lights = ("point", "area", "mesh")
     short = False
-    compiled = False
 
     # ---------------------------------------------------------------- which paths
     def k_range(self, scene: Scene, depth: int) -> range:

@@ -38,7 +38,6 @@ class PhotonPlane(Technique):
 
     family = "planes"
     min_k = 2
-    compiled = True  # fused_pass (planes_fused)
 
     def __init__(self, short: bool):
         self.short = short
