@@ -154,16 +154,16 @@ def build_parser() -> Parser:
 
 
 def _interactive_run():
-    """``ui.window.run`` when a display, pyvista and the app are all available, else None."""
+    """``ui.interactive.run`` when a display, pyvista and the app are all available, else None."""
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         return None
     import importlib
     import importlib.util
 
     try:
-        if importlib.util.find_spec("ui.window") is None:
+        if importlib.util.find_spec("ui.interactive") is None:
             return None
-        run = getattr(importlib.import_module("ui.window"), "run", None)
+        run = getattr(importlib.import_module("ui.interactive"), "run", None)
     except ImportError:
         return None
     if not callable(run):

@@ -9,7 +9,7 @@ Drives the window's composition off-screen (``ui.window.make_plotter`` + ``compo
   two image cells + ``plotter.render()`` (a "frame"; ``--every-tick`` draws on every tick).
   The panel mode cycles render -> techniques -> bounces (a third of the ticks each, so mode
   switches, i.e. rebuilds, are included). Reported: the frames, and every tick;
-* ``window-tick``: ``ui.window.App.tick`` itself with the window's own progressive wiring
+* ``window-tick``: ``ui.interactive.App.tick`` itself with the window's own progressive wiring
   (what its VTK timer calls: poll, and on new passes the panels, the stage text and a render);
   frames are the ticks that merged passes; the ``m`` key (a full redraw) is timed apart;
 * ``synchronous`` (for comparison, fewer frames): what the window's timer did before, one
@@ -63,7 +63,7 @@ def run(args) -> dict:
     specs = args.estimators.split(",")
     state = window.build_state(args.scene, specs[0], seed=0, photons=args.photons, passes=1)
     settings = RenderSettings(photons=args.photons)
-    cells = [window._RENDER, window._VARIANCE]
+    cells = [window.CELL_RENDER, window.CELL_VARIANCE]
     results = {"scene": args.scene, "estimators": specs, "photons": args.photons,
                "period_s": args.period, "size": list(args.size), "machine": {
                    "cpus": os.cpu_count(), "python": platform.python_version(),
@@ -120,7 +120,7 @@ def run(args) -> dict:
         for _ in range(args.sync_frames):
             t0 = time.perf_counter()
             acc.add(render_pass(state.scene, state.estimator, acc.n, state.seed, settings))
-            window._compose_images(plotter, state)
+            window.compose_images(plotter, state)
             plotter.render()
             times.append(1000.0 * (time.perf_counter() - t0))
         results["configs"][f"synchronous/{tag}"] = {**_stats(times),
@@ -130,10 +130,10 @@ def run(args) -> dict:
 
 
 def _window_ticks(args, specs, old_plotter, msaa: bool) -> dict:
-    """Time ``ui.window.App.tick`` itself (what the window's VTK timer calls), with the
+    """Time ``ui.interactive.App.tick`` itself (what the window's VTK timer calls), with the
     window's own progressive wiring (``attach_progressive``, one worker process); the ``m``
     key (``App.next_mode``: a full redraw) is timed apart, a third of the way and two thirds."""
-    from ui import window
+    from ui import interactive, window
 
     state = window.build_state(args.scene, specs[0], seed=0, photons=args.photons,
                                render_passes=False)
@@ -142,7 +142,7 @@ def _window_ticks(args, specs, old_plotter, msaa: bool) -> dict:
     plotter = window.make_plotter(tuple(args.size), off_screen=True)
     if not msaa:
         plotter.ren_win.SetMultiSamples(0)
-    app = window.App(plotter, state)
+    app = interactive.App(plotter, state)
     if msaa:
         # Keep multisampling: the window itself switches it off in software OpenGL on its
         # first tick; this configuration shows what that saves.

@@ -171,7 +171,8 @@ def test_cli_bad_pixel_syntax(capsys, tmp_path):
 # --------------------------------------------------------------------------- window actions
 def test_window_actions_offscreen(tmp_path, monkeypatch):
     """The key handlers of the window, driven directly on an off-screen plotter."""
-    from ui.window import App, build_state, compose, make_plotter
+    from ui.interactive import App
+    from ui.window import build_state, compose, make_plotter
 
     monkeypatch.chdir(tmp_path)
     state = build_state(str(ROOT / "scenes" / "point.toml"), "planes", seed=1, pixel_xy=(32, 24),

@@ -117,7 +117,8 @@ def test_coverage_mesh_outline():
 # --------------------------------------------------------------------------- the window
 @pytest.fixture(scope="module")
 def window():
-    from ui.window import App, build_state, compose, make_plotter
+    from ui.interactive import App
+    from ui.window import build_state, compose, make_plotter
 
     state = build_state(POINT, "mis:plane-t1t2+planes", seed=1, pixel_xy=(32, 24),
                         photons=100, passes=2)
@@ -294,7 +295,8 @@ def test_progressive_panels_tick_pick_and_modes():
     deterministically): passes arrive through ``tick``, a click on a scaled tile of
     ``image_panels.PanelView`` picks the pixel, coverage lands on the inspected estimator's
     tile, ``m`` cycles the panel modes, a medium change restarts the worker's job."""
-    from ui.window import App, attach_progressive, build_state, compose, make_plotter
+    from ui.interactive import App
+    from ui.window import attach_progressive, build_state, compose, make_plotter
 
     state = build_state(POINT, "mis:plane-t1t2+planes", seed=1, pixel_xy=(32, 24),
                         photons=100, render_passes=False)
@@ -375,8 +377,8 @@ def test_reference_gives_relmse_in_the_panels_and_is_dropped_with_the_medium(tmp
     """``--reference``: the render panels show relMSE against it (the window and
     ``screenshot``); a medium change drops it (it is the image of the loaded medium)."""
     from ui.image_panels import mode_areas
+    from ui.interactive import App
     from ui.window import (
-        App,
         attach_progressive,
         build_state,
         load_reference_image,

@@ -1,7 +1,7 @@
 """The real interactive window under a virtual X server (skipped when ``xvfb-run`` is absent).
 
 ``python app.py scenes/area.toml`` opens the window; ``PSURF_WINDOW_SCRIPT`` (see
-``ui.window.SCRIPT_ENV``) plays key presses and mouse clicks through VTK's interactor, one per
+``ui.interactive.SCRIPT_ENV``) plays key presses and mouse clicks through VTK's interactor, one per
 timer tick, takes screenshots and quits. The test checks that the window opens, steps through
 every stage, picks pixels by clicking both image panels (the progressive panels of
 ``ui.image_panels``), toggles coverage, the inspected pass, the panel mode and the sliders,
