@@ -1,5 +1,6 @@
-"""``python app.py render``: the render command, its checkpoints, and the CLI helpers that
-``app.py``'s other commands share (flag types, one-line errors, atomic output writes).
+"""``python app.py render``: the render command and the CLI helpers that ``app.py``'s other
+commands share (flag types, one-line errors, atomic output writes); the checkpoint machinery
+is in :mod:`ui.render_checkpoint`.
 
 No pyvista here: only argparse, numpy and :mod:`psurf_core`. ``app.py`` wires it in with::
 
@@ -27,7 +28,6 @@ import os
 import signal
 import sys
 import textwrap
-import time
 
 import numpy as np
 
@@ -378,148 +378,24 @@ def sigint_deferred():
         signal.signal(signal.SIGINT, old)
 
 
-# --------------------------------------------------------------------------- checkpoints
-
-#: Identity keys (psurf_core.checkpoint.render_identity) -> the flag that sets them.
-_IDENTITY_FLAGS = {
-    "estimator": "--estimator", "seed": "--seed", "photons": "--photons", "spp": "--spp",
-    "min_scatter": "--min-scatter", "max_scatter": "--max-scatter",
-    "memory_budget_mib": "--memory-budget", "radius": "--radius",
-    "radius_shrink": "--radius-shrink",
-}
-
-
-def _describe_difference(key: str, saved, current, scene_file: str) -> str:
-    if key == "scene_sha256":
-        return (f"the scene file {scene_file} is not the one the checkpoint was made from "
-                f"(SHA-256 {str(current)[:12]}..., checkpoint {str(saved)[:12]}...)")
-    if key == "mesh_sha256":
-        return f"a mesh file of {scene_file} changed since the checkpoint was made"
-    if key == "resolution":
-        return f"the checkpoint is a {saved} image, the scene renders {current}"
-    flag = _IDENTITY_FLAGS.get(key, key)
-
-    def show(v):
-        return "(not set)" if v is None else repr(v) if isinstance(v, str) else str(v)
-
-    return (f"the checkpoint was made with {flag} {show(saved)}, "
-            f"the command line has {show(current)}")
-
-
-class Checkpointer:
-    """Keeps a consistent snapshot of the accumulator after every pass and writes it.
-
-    The snapshot (``n``, copies of ``mean`` and ``m2``) is replaced in one assignment, so a
-    Ctrl-C that lands anywhere (even inside ``Welford.add`` of the next pass) leaves it
-    consistent; the interrupt handler then saves it.
-    """
-
-    def __init__(self, directory: str, identity: dict, every: float, acc, seconds_before: float,
-                 extra: dict, on_disk: int | None):
-        self.directory = directory
-        self.identity = identity
-        self.every = every
-        self.seconds_before = seconds_before
-        self.extra = extra
-        self.snapshot = (acc.n, acc.mean.copy(), acc.m2.copy(), seconds_before)
-        self.on_disk = on_disk  # pass count of the checkpoint file now in DIR (None: none)
-        self.last_write = time.monotonic()
-
-    @property
-    def passes(self) -> int:
-        return self.snapshot[0]
-
-    def on_pass(self, i, acc, elapsed) -> None:
-        self.snapshot = (acc.n, acc.mean.copy(), acc.m2.copy(), self.seconds_before + elapsed)
-        if time.monotonic() - self.last_write >= self.every:
-            self.write()
-
-    def write(self) -> bool:
-        """Save the snapshot unless the file already holds it (or it has no pass)."""
-        from psurf_core import __version__
-        from psurf_core.accumulate import Welford
-        from psurf_core.checkpoint import save_checkpoint
-
-        n, mean, m2, seconds = self.snapshot
-        if n == 0 or n == self.on_disk:
-            return False
-        save_checkpoint(self.directory, Welford(n, mean, m2), self.identity, seconds=seconds,
-                        version=__version__, extra=self.extra)
-        self.on_disk = n
-        self.last_write = time.monotonic()
-        return True
-
-
-def _checkpoint_dir_ok(flag: str, directory: str, must_be_empty: bool) -> None:
-    """``directory`` can hold a checkpoint: it is (or can be made) a writable directory."""
-    from psurf_core.checkpoint import CHECKPOINT_FILE, checkpoint_path
-
-    if os.path.exists(directory) and not os.path.isdir(directory):
-        raise CliError(f"{flag} {directory}: exists and is not a directory")
-    if os.path.isdir(directory):
-        if must_be_empty and os.path.exists(checkpoint_path(directory)):
-            raise CliError(f"{flag} {directory}: already holds a checkpoint ({CHECKPOINT_FILE}); "
-                           f"continue it with --resume {directory}, or choose another directory")
-        if not os.access(directory, os.W_OK):
-            raise CliError(f"{flag} {directory}: directory is not writable")
-        return
-    parent = os.path.dirname(os.path.abspath(directory))
-    if not os.path.isdir(parent):
-        raise CliError(f"{flag} {directory}: parent directory does not exist: "
-                       f"{os.path.dirname(directory) or '.'}")
-    if not os.access(parent, os.W_OK):
-        raise CliError(f"{flag} {directory}: cannot create it (parent not writable)")
-
-
-def _same_dir(a: str, b: str) -> bool:
-    return os.path.abspath(a) == os.path.abspath(b) or (
-        os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b))
-
-
-def _load_resume(args, identity: dict):
-    """The checkpoint of ``--resume``, checked against this command line."""
-    from psurf_core import __version__
-    from psurf_core.checkpoint import CheckpointError, identity_differences, load_checkpoint
-
-    try:
-        ck = load_checkpoint(args.resume)
-    except CheckpointError as e:
-        raise CliError(f"--resume {args.resume}: {e}") from None
-    if ck.meta.get("version") != __version__:
-        raise CliError(f"--resume {args.resume}: the checkpoint was written by psurf "
-                       f"{ck.meta.get('version')}, this is psurf {__version__}")
-    diffs = identity_differences(ck.identity, identity)
-    if diffs:
-        more = f" (and {plural(len(diffs) - 1, 'other difference')})" if len(diffs) > 1 else ""
-        raise CliError(f"--resume {args.resume}: "
-                       f"{_describe_difference(*diffs[0], args.scene)}{more}; a resumed render "
-                       f"must use the same scene file, estimator, seed and settings")
-    return ck
-
-
-def _budget(args, ck):
-    """``(passes, time_budget)`` of this session (see the ``render`` help on resuming)."""
-    if args.passes is not None or args.time is not None:
-        if ck is not None and args.passes is not None and ck.accumulator.n > args.passes:
-            raise CliError(f"--passes {args.passes}: the checkpoint in {args.resume} already "
-                           f"holds {ck.accumulator.n} passes")
-        return args.passes, args.time
-    if ck is None:
-        return DEFAULT_PASSES, None
-    saved = ck.meta.get("budget") or {}
-    if saved.get("time") is not None:
-        left = float(saved["time"]) - ck.seconds
-        return (None, left) if left > 0 else (ck.accumulator.n, None)
-    return max(int(saved.get("passes") or DEFAULT_PASSES), ck.accumulator.n), None
-
-
 # --------------------------------------------------------------------------- render
 
 
 def cmd_render(args) -> int:
+    # Checkpoint machinery lives beside this module and imports its helpers: imported here.
     from psurf_core import RenderSettings
     from psurf_core.checkpoint import render_identity
     from psurf_core.render import RenderResult, render
+
+    from .render_checkpoint import (
+        Checkpointer,
+        checkpoint_dir_ok,
+        load_resume,
+        report_interrupt,
+        same_dir,
+        save_on_failure,
+        session_budget,
+    )
 
     check_output("--out", args.out)
     if args.png is not None:
@@ -534,12 +410,12 @@ def cmd_render(args) -> int:
     if args.checkpoint_every is not None and args.checkpoint is None and args.resume is None:
         raise CliError("--checkpoint-every: needs --checkpoint DIR (or --resume DIR)")
     if args.checkpoint is not None:
-        resuming_here = args.resume is not None and _same_dir(args.checkpoint, args.resume)
-        _checkpoint_dir_ok("--checkpoint", args.checkpoint, must_be_empty=not resuming_here)
+        resuming_here = args.resume is not None and same_dir(args.checkpoint, args.resume)
+        checkpoint_dir_ok("--checkpoint", args.checkpoint, must_be_empty=not resuming_here)
     if args.resume is not None:
         if not os.path.isdir(args.resume):
             raise CliError(f"--resume {args.resume}: no such directory")
-        _checkpoint_dir_ok("--resume", args.resume, must_be_empty=False)
+        checkpoint_dir_ok("--resume", args.resume, must_be_empty=False)
 
     scene = load_scene(args.scene)
     scene = with_scatter(scene, args.min_scatter, args.max_scatter)
@@ -554,8 +430,8 @@ def cmd_render(args) -> int:
 
     ck_dir = args.checkpoint if args.checkpoint is not None else args.resume
     identity = render_identity(args.scene, scene, est, settings, args.seed) if ck_dir else None
-    ck = _load_resume(args, identity) if args.resume is not None else None
-    passes, time_budget = _budget(args, ck)
+    ck = load_resume(args, identity) if args.resume is not None else None
+    passes, time_budget = session_budget(args, ck)
 
     # Every input is valid (notes come only now, so that an error is the only line).
     note_scatter_range(est, scene)
@@ -575,7 +451,7 @@ def cmd_render(args) -> int:
                   {"time": seconds_before + time_budget})
         extra = {"scene": os.path.abspath(args.scene), "argv": list(sys.argv), "budget": budget}
         start = acc if acc is not None else _empty_acc(scene)
-        on_disk = start.n if ck is not None and _same_dir(ck_dir, args.resume) else None
+        on_disk = start.n if ck is not None and same_dir(ck_dir, args.resume) else None
         ckpt = Checkpointer(ck_dir, identity, every, start, seconds_before, extra, on_disk)
 
     start_n = acc.n if acc is not None else 0
@@ -600,10 +476,10 @@ def cmd_render(args) -> int:
                       or render(scene, est, settings, **kw))
     except KeyboardInterrupt:
         close()
-        return _interrupted(ckpt, args)
+        return report_interrupt(ckpt, args)
     except FloatingPointError as e:  # Welford.add refused a non-finite pixel: a bug
         close()
-        saved = _save_on_failure(ckpt)
+        saved = save_on_failure(ckpt)
         print(f"{PROG}: error: internal: {e} (estimator '{est.spec}'; please report it)"
               f"{saved}", file=sys.stderr)
         return 1
@@ -636,38 +512,3 @@ def _empty_acc(scene):
     from psurf_core.accumulate import Welford
 
     return Welford.empty((scene.camera.height, scene.camera.width, 3))
-
-
-def _interrupted(ckpt: Checkpointer | None, args) -> int:
-    """Ctrl-C: save the completed passes (if checkpointing), print one line, exit 130."""
-    if ckpt is None:
-        print(f"{PROG}: interrupted; nothing written", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    try:
-        with sigint_deferred():
-            ckpt.write()
-    except OSError as e:
-        print(f"{PROG}: interrupted; could not save the checkpoint in {ckpt.directory} "
-              f"({e.strerror or e}); nothing written", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    if not ckpt.on_disk:
-        print(f"{PROG}: interrupted before the first pass finished; nothing written",
-              file=sys.stderr)
-    else:
-        print(f"{PROG}: interrupted; {ckpt.directory} holds {plural(ckpt.on_disk, 'pass')} "
-              f"(continue with --resume {ckpt.directory}); {args.out} not written",
-              file=sys.stderr)
-    return EXIT_INTERRUPTED
-
-
-def _save_on_failure(ckpt: Checkpointer | None) -> str:
-    if ckpt is None:
-        return ""
-    try:
-        with sigint_deferred():
-            ckpt.write()
-    except OSError:
-        return ""
-    if ckpt.on_disk:
-        return f"; {ckpt.directory} holds the {plural(ckpt.on_disk, 'completed pass')}"
-    return ""

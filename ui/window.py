@@ -17,12 +17,12 @@ timer without waiting; for :func:`screenshot` the same passes rendered in this p
 ``--estimators A,B`` they show A and B side by side at equal time; A is the estimator the stages
 inspect. (A :class:`ViewState` without ``prog`` (lecture mode) shows its own accumulator.)
 
-Keys (:data:`HELP`, bound by :class:`ui.interactive.App`): ``n``/``p`` next/previous stage, ``space`` play/pause, ``r`` reset, ``s``
-screenshot, ``h`` help; arrows move the picked pixel, ``[``/``]`` choose the hit, ``+``/``-``
-change the number of subpaths, ``,``/``.`` the inspected pass, ``c`` coverage (the pixels the
-selected hit's primitive reaches), ``1``..``9`` MIS members on/off, ``x X``/``a A``/``g G``/
-``k K`` sigma_s, sigma_a, g, photons (debounced: the scene is rebuilt once the keys rest),
-``m`` panel mode, ``v`` record a GIF, ``w`` sliders.
+Keys (:data:`HELP`, bound by :class:`ui.interactive.App`): ``n``/``p`` next/previous stage,
+``space`` play/pause, ``r`` reset, ``s`` screenshot, ``h`` help; arrows move the picked pixel,
+``[``/``]`` choose the hit, ``+``/``-`` change the number of subpaths, ``,``/``.`` the
+inspected pass, ``c`` coverage (the pixels the selected hit's primitive reaches), ``1``..``9``
+MIS members on/off, ``x X``/``a A``/``g G``/``k K`` sigma_s, sigma_a, g, photons (debounced:
+the scene is rebuilt once the keys rest), ``m`` panel mode, ``v`` record a GIF, ``w`` sliders.
 Mouse: a click on the render or variance panel picks that pixel; a right click on a primitive
 in the 3D view shows its coverage; the buttons, member chips and sliders of
 :mod:`ui.controls` do the same as the keys.
