@@ -5,7 +5,10 @@ Grammar (the CLI contract):
 * ``reference`` - the volumetric path tracer (ground truth);
 * a registered technique name, with ``-short`` where it has a short variant;
 * ``mis:A+B+...`` (balance heuristic) / ``mis-power:A+B+...`` (power heuristic, beta = 2);
-* presets (``paper-single``, ``paper-multi``, ``paper-full``) where registered in :data:`PRESETS`.
+* presets (``paper-single``, ``paper-multi``, ``paper-full``) where registered in :data:`PRESETS`;
+* ``SPEC~A~B``: ``SPEC`` (a preset or an MIS set) without its members ``A`` and ``B`` (what the
+  window's member toggles give): every other member keeps what ``SPEC`` gave it (a preset's
+  per-light choice, its MIS set), and a set left with one member is that technique alone.
 """
 
 from __future__ import annotations
@@ -61,6 +64,7 @@ def estimator_help() -> str:
     for name in PRESETS:
         lines.append(f"{name}: preset (see README)")
     lines.append("mis:A+B+... / mis-power:A+B+...: MIS of photon-surface techniques")
+    lines.append("SPEC~A~B: SPEC (a preset or an MIS set) without its members A and B")
     return "\n".join(lines)
 
 
@@ -104,6 +108,8 @@ def coverage_notes(est: Estimator, scene: Scene) -> tuple[str, ...]:
 
 
 def _parse(spec: str, scene: Scene | None) -> Estimator:
+    if "~" in spec:
+        return _without(spec, scene)
     if spec in PRESETS:
         return PRESETS[spec](spec, scene)
     if spec.endswith("-short") and spec[: -len("-short")] in PRESETS:
@@ -118,6 +124,26 @@ def _parse(spec: str, scene: Scene | None) -> Estimator:
             f"(lights: {', '.join(kinds)})"
         )
     return Estimator(spec, groups=((tech,),))
+
+
+def _without(spec: str, scene: Scene | None) -> Estimator:
+    """``BASE~A~B``: the estimator ``BASE`` with members ``A``, ``B`` left out."""
+    base_spec, *drop = (part.strip() for part in spec.split("~"))
+    if not base_spec or any(not d for d in drop):
+        raise UnknownTechnique(f"malformed spec '{spec}': expected SPEC~MEMBER~MEMBER...")
+    if base_spec == "reference":
+        raise UnknownTechnique(f"'{spec}': the path tracer has no members to leave out")
+    base = _parse(base_spec, scene)
+    names = [t.name for t in base.techniques]
+    unknown = [d for d in drop if d not in names]
+    if unknown:
+        raise UnknownTechnique(f"'{spec}': '{unknown[0]}' is not a member of '{base_spec}' "
+                               f"(members: {', '.join(names)})")
+    groups = tuple(g2 for g2 in (tuple(t for t in g if t.name not in drop)
+                                 for g in base.groups) if g2)
+    if not groups:
+        raise UnknownTechnique(f"'{spec}' leaves out every member of '{base_spec}'")
+    return replace(base, spec=spec, groups=groups)
 
 
 # The MIS module registers the presets; imported last because it builds on this module.

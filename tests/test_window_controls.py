@@ -8,6 +8,7 @@ synthetic VTK mouse events through the interactor (the path a real click takes).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -57,22 +58,53 @@ def test_viewport_at():
 
 # --------------------------------------------------------------------------- pure controls
 def test_estimator_members_toggle():
+    from psurf_core.estimators import parse_estimator
     from psurf_core.scene_io import load_scene
 
     scene = load_scene(POINT)
     est = controls.estimator_with("mis:plane-t1t2+plane-t1t3+planes", scene, {"plane-t1t3"})
-    assert est.spec == "mis:plane-t1t2+plane-t1t2-short"  # 'planes' is plane-t1t2-short
-    assert controls.members(est) == ("plane-t1t2", "plane-t1t2-short")
+    assert est.spec == "mis:plane-t1t2+plane-t1t3+planes~plane-t1t3"
+    assert controls.members(est) == ("plane-t1t2", "plane-t1t2-short")  # 'planes' is short
+    assert est.weighting == "balance" and len(est.groups) == 1
     one = controls.estimator_with("mis-power:plane-t1t2+plane-t1t3", scene, {"plane-t1t2"})
-    assert one.spec == "plane-t1t3" and len(one.techniques) == 1
+    assert controls.members(one) == ("plane-t1t3",) and est.groups[0] != one.groups[0]
+    assert len(one.groups) == 1 and len(one.groups[0]) == 1  # alone: no MIS weight
     with pytest.raises(ValueError, match="at least one"):
         controls.estimator_with("mis:plane-t1t2+plane-t1t3", scene,
                                 {"plane-t1t2", "plane-t1t3"})
     preset = controls.estimator_with("paper-multi", scene, {"cone"})
-    assert "cone" not in controls.members(preset) and preset.spec.startswith("mis:")
-    assert preset.weighting == "balance" and len(controls.members(preset)) >= 2
-    with pytest.raises(ValueError, match="MIS sets"):
-        controls.estimator_with("paper-full", scene, {"cone"})
+    assert preset.spec == "paper-multi~cone" and preset.weighting == "balance"
+    assert controls.members(preset) == ("plane-t1t2", "plane-t1t3", "plane-t2t3", "cylinder")
+    # paper-full keeps both MIS sets, and the preset's per-light choice (ss-disk: point only)
+    full = controls.estimator_with("paper-full", scene, {"cone", "ss-sphere"})
+    sizes = [len(g) for g in parse_estimator("paper-full", scene).groups]
+    assert [len(g) for g in full.groups] == [sizes[0] - 1, sizes[1] - 1]
+    assert not {"cone", "ss-sphere"} & set(controls.members(full))
+    disk = [t for t in full.techniques if t.name == "ss-disk"][0]
+    assert disk.lights == ("point",)
+    assert controls.estimator_with("paper-full", scene, set()).spec == "paper-full"
+
+
+def test_without_grammar_errors_and_image():
+    """``SPEC~A``: errors name the spec and the member; ``paper-multi~cone`` renders exactly
+    ``mis:`` of the remaining members (paper-multi restricts no light)."""
+    from psurf_core.estimators import parse_estimator
+    from psurf_core.render import RenderSettings, render_pass
+    from psurf_core.scene_io import load_scene
+    from psurf_core.techniques import UnknownTechnique
+
+    scene = load_scene(POINT)
+    for spec, msg in [("paper-multi~ss-cone", "not a member of 'paper-multi'"),
+                      ("paper-multi~", "malformed"), ("reference~cone", "path tracer"),
+                      ("mis:cone+cylinder~cone~cylinder", "every member")]:
+        with pytest.raises(UnknownTechnique, match=msg):
+            parse_estimator(spec, scene)
+    small = replace(scene, camera=replace(scene.camera, width=24, height=18))
+    st = RenderSettings(photons=150)
+    a = render_pass(small, parse_estimator("paper-multi~cone", small), 0, 3, st)
+    b = render_pass(small, parse_estimator("mis:plane-t1t2+plane-t1t3+plane-t2t3+cylinder",
+                                           small), 0, 3, st)
+    assert np.array_equal(a, b) and a.max() > 0
 
 
 def test_medium_params_and_scene():
@@ -239,9 +271,11 @@ def test_member_chip_toggles_and_keeps_one(window):
     app, s = window, window.s
     assert app.members == ("plane-t1t2", "plane-t1t2-short")
     assert app.click(_centre(app, "member:plane-t1t2")) == "button"
-    assert s.estimator.spec == "plane-t1t2-short" and s.disabled == {"plane-t1t2"}
+    alone = "mis:plane-t1t2+planes~plane-t1t2"
+    assert s.estimator.spec == alone and s.disabled == {"plane-t1t2"}
+    assert [t.name for t in s.estimator.techniques] == ["plane-t1t2-short"]
     app.toggle_member("plane-t1t2-short")  # would leave none: refused
-    assert s.estimator.spec == "plane-t1t2-short" and "at least one" in s.message
+    assert s.estimator.spec == alone and "at least one" in s.message
     app.toggle_member_index(0)
     assert s.estimator.spec == "mis:plane-t1t2+planes" and not s.disabled
 

@@ -143,35 +143,26 @@ def members(est) -> tuple:
 
 
 def estimator_with(base_spec: str, scene, disabled):
-    """``base_spec`` parsed for ``scene`` with the techniques named in ``disabled`` left out,
-    re-parsed from a spec that works on the command line (and in a progressive worker):
-    ``mis:A+B`` (``mis-power:`` kept), or the single remaining technique.
-
-    A preset of one MIS set (``paper-single``, ``paper-multi``) becomes ``mis:`` of its
-    remaining members; which lights each member estimates is then decided by the scene (a
-    preset may restrict a member to some light kinds, see ``psurf_core.mis``).
+    """``base_spec`` parsed for ``scene`` with the techniques named in ``disabled`` left out:
+    ``base_spec~A~B`` (the estimator grammar's "without"), a spec that works on the command
+    line and in a progressive worker. The other members keep what ``base_spec`` gave them (a
+    preset's per-light choice, its MIS sets: ``paper-full`` keeps two).
 
     Raises
     ------
     ValueError
-        When every member would be disabled, or the estimator has several groups
-        (``paper-full``: two MIS sets).
+        When every member would be disabled.
     """
     from psurf_core.estimators import parse_estimator
 
     base = parse_estimator(base_spec, scene)
     names = members(base)
-    disabled = set(disabled) & set(names)
-    kept = [n for n in names if n not in disabled]
-    if not kept:
+    dropped = [n for n in names if n in set(disabled)]
+    if len(dropped) == len(names):
         raise ValueError("at least one estimator member must stay enabled")
-    if not disabled:
+    if not dropped:
         return base
-    if len(base.groups) > 1:
-        raise ValueError(f"'{base_spec}' has {len(base.groups)} MIS sets: members can be "
-                         "switched off in one mis:A+B+... set")
-    head = "mis-power" if base.weighting == "power" else "mis"
-    return parse_estimator(kept[0] if len(kept) == 1 else f"{head}:{'+'.join(kept)}", scene)
+    return parse_estimator("~".join([base_spec, *dropped]), scene)
 
 
 # --------------------------------------------------------------------------- medium
