@@ -44,8 +44,21 @@ def weights_from_densities(q: np.ndarray, weighting: str | None) -> np.ndarray:
     return w
 
 
-def mis_weights(tech: Technique, group, weighting, hits, prims, paths, rays, ctx) -> np.ndarray:
-    """(H,) MIS weight of ``tech``'s hits within ``group``."""
+def mis_weights(tech: Technique, group, weighting, hits, prims, paths, rays, ctx,
+                fast: bool = True) -> np.ndarray:
+    """(H,) MIS weight of ``tech``'s hits within ``group``.
+
+    ``fast`` (default): the compiled kernel of :mod:`psurf_core.mis_fused` where it covers
+    ``tech``, every member and the hits' data (the paper's presets), else (and with
+    ``fast=False``) the reference numpy path: ``tech.reconstruct``, each member's
+    ``density`` (:func:`member_densities`), :func:`weights_from_densities`.
+    """
+    if fast and len(hits):
+        from .mis_fused import fast_weights  # numba: imported on the first MIS chunk
+
+        w = fast_weights(tech, group, weighting, hits, prims, paths, rays, ctx)
+        if w is not None:
+            return w
     rec = tech.reconstruct(hits, prims, paths, rays, ctx)
     q = member_densities(rec, group, ctx)
     me = [i for i, m in enumerate(group) if m is tech][0]

@@ -1,0 +1,404 @@
+"""Compiled MIS weights: Reconstruct + every member's density + the heuristic, per hit.
+
+:func:`psurf_core.mis.mis_weights` on the numpy path builds a full
+:class:`~psurf_core.path_record.PathRecord` per chunk of hits (about twenty (H, 3) / (H,)
+gathers), then every member's ``density`` allocates its own (H,) / (H, 3) temporaries, then a
+(J, H) array of densities becomes the weights: ~1 us per hit and member. Here one compiled
+loop does the same per hit with scalars: it reads the photon's last three segments from
+:class:`~psurf_core.trace.PhotonPaths`, replaces the integrated dimensions by the hit's roots
+(the technique's ``reconstruct``), evaluates each member's relative density ``Q_j`` (the
+technique's ``density``) and returns ``Q_i^b / sum_j Q_j^b``.
+
+Only what the densities read is rebuilt: directions, distances, the light coordinates
+``uv`` and ``psi`` (no density reads a vertex, except the single-scattering sphere, cone and
+disk, whose rebuilt ``w1`` is ``x0 - x1``). The arithmetic is written in the numpy path's
+order (its ``einsum`` dots and ``np.cross`` included), so weights agree to rounding
+(``tests/test_mis_fast.py``); the numpy ``density`` methods remain the reference, used for any
+technique or hit layout this module does not know (:func:`fast_weights` returns ``None``).
+
+Covered techniques (exact types, long and short): ``plane-t1t2``, ``plane-t1t3``,
+``plane-t2t3``, ``cone``, ``cylinder``, ``ss-sphere``, ``ss-cone``, ``ss-disk``,
+``ss-plane-{uv,ut,vt}``: the members of ``paper-single``, ``paper-multi`` and ``paper-full``.
+The kernel is single-threaded and compiled once per clone (``cache=True``).
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+from numba import njit
+
+from .compiled import ctrl_c_kept
+from .path_record import KIND_CODE
+from .sampling import INV_4PI
+from .scene import AreaLight, MeshLight
+from .techniques.cones import PhotonCone
+from .techniques.cylinders import PhotonCylinder
+from .techniques.generalized_planes import GeneralizedPlane
+from .techniques.planes import PhotonPlane
+from .techniques.single import SingleCone, SingleDisk, SingleSphere
+from .techniques.single_planes import SinglePlane
+
+#: Technique codes of the kernel.
+(_PLANE, _GP13, _GP23, _CONE, _CYL, _SS_SPHERE, _SS_CONE, _SS_DISK, _SS_UV, _SS_UT,
+ _SS_VT) = range(11)
+
+#: Hit data each reconstructing technique contributes: (``r0``, ``r1``, ``wv``) keys of
+#: ``Hits.data`` (None: not read).
+_HIT_KEYS = {
+    _PLANE: ("t2", "t1", None), _GP13: ("t3", "tv", None), _GP23: ("t3", "tv", None),
+    _CONE: ("t1", None, "w1"), _CYL: ("t2", None, "w1"),
+    _SS_SPHERE: (None, None, None), _SS_CONE: (None, None, None),
+    _SS_DISK: (None, None, None),
+    _SS_UV: ("a", "b", None), _SS_UT: ("a", "b", None), _SS_VT: ("a", "b", None),
+}
+
+_POINT, _MESH = KIND_CODE["point"], KIND_CODE["mesh"]
+_TWO_PI = 2.0 * np.pi
+_INV_2PI = 1.0 / (2.0 * np.pi)
+
+
+def technique_code(tech) -> int | None:
+    """Kernel code of ``tech`` (exact type: a subclass may change its density), or None."""
+    t = type(tech)
+    if t is PhotonPlane:
+        return _PLANE
+    if t is GeneralizedPlane:
+        return _GP13 if tech.which == "t1t3" else _GP23
+    if t is PhotonCone:
+        return _CONE
+    if t is PhotonCylinder:
+        return _CYL
+    if t is SingleSphere:
+        return _SS_SPHERE
+    if t is SingleCone:
+        return _SS_CONE
+    if t is SingleDisk:
+        return _SS_DISK
+    if t is SinglePlane:
+        return {"uv": _SS_UV, "ut": _SS_UT, "vt": _SS_VT}[tech.which]
+    return None
+
+
+def member_table(group) -> np.ndarray | None:
+    """(J, 5) int64 rows ``code, short, min_k, max_k (-1: none), light-kind bit mask`` of an
+    MIS group (``Technique.can_produce`` and ``density`` in numbers), or None when a member
+    has no kernel code."""
+    rows = []
+    for m in group:
+        code = technique_code(m)
+        if code is None:
+            return None
+        mask = 0
+        for k in m.lights:
+            mask |= 1 << KIND_CODE[k]
+        rows.append((code, int(bool(m.short)), int(m.min_k),
+                     -1 if m.max_k is None else int(m.max_k), mask))
+    return np.array(rows, dtype=np.int64).reshape(-1, 5)
+
+
+# ------------------------------------------------------------------------- per photon
+_PHOTON_CACHE: list = []  # [(weakref to paths, scene, table)]: the last paths seen
+
+
+def photon_table(paths, scene) -> np.ndarray:
+    """(P, 13) float per photon: light kind code, triangle pmf ``P_k`` (0 unless a mesh
+    light's triangle), ``uv`` (2), light ``axis`` (3), patch edges ``eu``, ``ev`` (3 + 3)
+    (the per-light fields of :func:`~psurf_core.path_record.photon_record` and ``Pdfs``).
+
+    Kept for the last ``paths`` seen: every chunk of every technique of a batch reads the
+    same photons.
+    """
+    if _PHOTON_CACHE:
+        ref, sc, tab = _PHOTON_CACHE[0]
+        if ref() is paths and sc is scene:
+            return tab
+    p = len(paths)
+    tab = np.zeros((p, 13))
+    tab[:, 2:4] = paths.light_uv
+    tab[:, 4:7] = paths.light_normal
+    for li, lt in enumerate(scene.lights):
+        sel = np.flatnonzero(paths.light == li)
+        tab[sel, 0] = KIND_CODE[lt.kind]
+        if isinstance(lt, AreaLight):
+            tab[sel, 7:10], tab[sel, 10:13] = lt.edge_u, lt.edge_v
+        elif isinstance(lt, MeshLight):
+            tri = paths.tri[sel]
+            tr = lt.triangles[tri]
+            tab[sel, 7:10], tab[sel, 10:13] = tr[:, 1] - tr[:, 0], tr[:, 2] - tr[:, 0]
+            ok = tri >= 0
+            tab[sel[ok], 1] = lt.areas[tri[ok]] / lt.area
+    _PHOTON_CACHE[:] = [(weakref.ref(paths), scene, tab)]
+    return tab
+
+
+# ------------------------------------------------------------------------- entry point
+def fast_weights(tech, group, weighting, hits, prims, paths, rays, ctx,
+                 member: int | None = None) -> np.ndarray | None:
+    """(H,) MIS weights of ``tech``'s hits within ``group``, or None where not covered.
+
+    Same parameters and result as :func:`psurf_core.mis.mis_weights` (to rounding); None
+    when ``tech`` or a member has no kernel code or the hits lack the data its
+    ``reconstruct`` reads (the caller then runs the numpy path). ``member`` (index into
+    ``group``): the weight of that member on the paths of ``tech``'s hits instead of
+    ``tech``'s own (weights of all members sum to one on every path).
+    """
+    code = technique_code(tech)
+    mem = member_table(group) if code is not None else None
+    if mem is None:
+        return None
+    me = [i for i, m in enumerate(group) if m is tech][0] if member is None else int(member)
+    keys = _HIT_KEYS[code]
+    if any(k is not None and k not in hits.data for k in keys):
+        return None
+    c = np.ascontiguousarray
+    r0 = c(hits.data[keys[0]], float) if keys[0] else np.zeros(0)
+    r1 = c(hits.data[keys[1]], float) if keys[1] else np.zeros(0)
+    wv = c(hits.data[keys[2]], float) if keys[2] else np.zeros((0, 3))
+    med = ctx.scene.medium
+    g = float(med.phase.g)
+    # phase_value's constants, computed as it computes them (same rounding).
+    hg_a = (1.0 - g) ** 2 if g > 0.0 else (1.0 + g) ** 2
+    hg_c = INV_4PI * ((1.0 - g) * (1.0 + g))
+    par = np.array([float(med.sigma_t), g, 1.0 if weighting == "power" else 0.0, hg_a, hg_c])
+    out = np.empty(len(hits))
+    i64 = np.int64
+    with ctrl_c_kept():
+        _weights_kernel(code, me, c(hits.ray, i64), c(hits.prim, i64), c(hits.s, float),
+                        r0, r1, wv, c(prims.photon, i64), c(prims.K, i64),
+                        c(paths.x, float), c(paths.w, float), c(paths.t, float),
+                        photon_table(paths, ctx.scene), c(rays.o, float), c(rays.d, float),
+                        mem, par, out)
+    return out
+
+
+# ------------------------------------------------------------------------- kernel
+@njit(cache=True, error_model="numpy", inline="always")
+def _dot(a0, a1, a2, b0, b1, b2):  # pragma: no cover - compiled
+    """``einsum('ij,ij->i')`` of one row: left to right, as numpy sums three terms."""
+    return a0 * b0 + a1 * b1 + a2 * b2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _phase(mu, g, hg_a, hg_c):  # pragma: no cover - compiled
+    """:func:`~psurf_core.sampling.phase_value` of one cosine (NaN stays NaN)."""
+    if g == 0.0:
+        return INV_4PI
+    if mu < -1.0:
+        mu = -1.0
+    elif mu > 1.0:
+        mu = 1.0
+    if g > 0.0:
+        den = hg_a + 2.0 * g * (1.0 - mu)
+    else:
+        den = hg_a - 2.0 * g * (1.0 + mu)
+    return hg_c / (den * np.sqrt(den))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _emission(kind, cos):  # pragma: no cover - compiled
+    """``path_record._emission_pdf``: ``1/4pi`` (point) or ``max(cos, 0) / pi`` (NaN stays)."""
+    if kind == _POINT:
+        return INV_4PI
+    if cos < 0.0:
+        cos = 0.0
+    return cos / np.pi
+
+
+@njit(cache=True, error_model="numpy")
+def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, ptab, ray_o,
+                    ray_d, mem, par, out):  # pragma: no cover - compiled
+    """Weights ``out[h] = Q_me^b / sum_j Q_j^b`` (0 where the sum is 0) of every hit ``h``.
+
+    ``code``: the hits' technique; ``r0, r1, wv``: its hit data (``_HIT_KEYS``); ``mem``:
+    :func:`member_table`; ``par``: ``sigma_t, g, power (0/1), phase constants``;
+    ``ptab``: :func:`photon_table`. Mirrors ``reconstruct`` + ``Pdfs`` + each ``density``.
+    """
+    st = par[0]
+    g = par[1]
+    power = par[2] != 0.0
+    hg_a = par[3]
+    hg_c = par[4]
+    nan = np.nan
+    nm = mem.shape[0]
+    qb = np.zeros(nm)
+    for h in range(ray.shape[0]):
+        p = prim[h]
+        ph = photon[p]
+        K = kk[p]
+        r = ray[h]
+        # ---- the photon's own record (photon_record): segment k is tracer index K - k.
+        j = K - 1
+        w1x, w1y, w1z, t1 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
+        if K >= 2:
+            j = K - 2
+            w2x, w2y, w2z, t2 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
+        else:
+            w2x, w2y, w2z, t2 = nan, nan, nan, nan
+        if K >= 3:
+            j = K - 3
+            w3x, w3y, w3z, t3 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
+        else:
+            w3x, w3y, w3z, t3 = nan, nan, nan, nan
+        kind = ptab[ph, 0]
+        pk = ptab[ph, 1]
+        u = ptab[ph, 2]
+        v = ptab[ph, 3]
+        ax, ay, az = ptab[ph, 4], ptab[ph, 5], ptab[ph, 6]
+        px, py, pz = ray_d[r, 0], ray_d[r, 1], ray_d[r, 2]
+        # ---- reconstruct: the hit's integrated dimensions replace the photon's.
+        if code == _PLANE:
+            t2 = r0[h]
+            t1 = r1[h]
+        elif code == _GP13:
+            t3 = r0[h]
+            t1 = r1[h]
+        elif code == _GP23:
+            t3 = r0[h]
+            t2 = r1[h]
+        elif code == _CONE:
+            t1 = r0[h]
+            w1x, w1y, w1z = wv[h, 0], wv[h, 1], wv[h, 2]
+        elif code == _CYL:
+            t2 = r0[h]
+            w1x, w1y, w1z = wv[h, 0], wv[h, 1], wv[h, 2]
+        elif code == _SS_SPHERE or code == _SS_CONE or code == _SS_DISK:
+            # w1* = normalize(x0 - x1), x1 = the light point (K = 1), x0 = o + s psi.
+            sh = s[h]
+            dx = (ray_o[r, 0] + sh * px) - x[ph, K - 1, 0]
+            dy = (ray_o[r, 1] + sh * py) - x[ph, K - 1, 1]
+            dz = (ray_o[r, 2] + sh * pz) - x[ph, K - 1, 2]
+            nl = np.sqrt(dx * dx + dy * dy + dz * dz)
+            dv = nl if nl > 0.0 else 1.0
+            w1x, w1y, w1z = dx / dv, dy / dv, dz / dv
+            if code != _SS_SPHERE:
+                t1 = nl
+        elif code == _SS_UV:
+            u = r0[h]
+            v = r1[h]
+        elif code == _SS_UT:
+            u = r0[h]
+            t1 = r1[h]
+        elif code == _SS_VT:
+            v = r0[h]
+            t1 = r1[h]
+        # ---- Pdfs
+        f1 = st * np.exp(-st * t1)
+        f2 = st * np.exp(-st * t2)
+        f3 = st * np.exp(-st * t3)
+        if K == 1:
+            pw1 = _emission(kind, _dot(ax, ay, az, w1x, w1y, w1z))
+        else:
+            pw1 = _phase(_dot(w2x, w2y, w2z, w1x, w1y, w1z), g, hg_a, hg_c)
+        if K == 2:
+            pw2 = _emission(kind, _dot(ax, ay, az, w2x, w2y, w2z))
+        else:
+            pw2 = _phase(_dot(w3x, w3y, w3z, w2x, w2y, w2z), g, hg_a, hg_c)
+        pc1 = _TWO_PI * pw1
+        mesh = kind == _MESH
+        puv = 2.0 * pk if mesh else 1.0
+        pu = 2.0 * pk * (1.0 - u) if mesh else 1.0
+        pv = 2.0 * pk * (1.0 - v) if mesh else 1.0
+        qw2 = (f3 if K >= 3 else 1.0) * pw2  # surface_common.q_to_w2
+        ik = np.int64(kind)
+        # ---- each member's density on this record
+        den = 0.0
+        for jm in range(nm):
+            mc = mem[jm, 0]
+            short = mem[jm, 1] != 0
+            ok = K >= mem[jm, 2] and (mem[jm, 3] < 0 or K <= mem[jm, 3])
+            ok = ok and ((mem[jm, 4] >> ik) & 1) == 1
+            q = 0.0
+            if ok:
+                if mc == _PLANE:
+                    nx = w1y * w2z - w1z * w2y
+                    ny = w1z * w2x - w1x * w2z
+                    nz = w1x * w2y - w1y * w2x
+                    q = (f3 if K >= 3 else 1.0) * pw2 * pw1
+                    q = q * abs(_dot(nx, ny, nz, px, py, pz))
+                    if short:
+                        q = q * np.exp(-st * (t1 + t2))
+                elif mc == _GP13 or mc == _GP23:
+                    if mc == _GP13:
+                        nx = w1y * w3z - w1z * w3y
+                        ny = w1z * w3x - w1x * w3z
+                        nz = w1x * w3y - w1y * w3x
+                        other = f2
+                        ta = t1
+                    else:
+                        nx = w2y * w3z - w2z * w3y
+                        ny = w2z * w3x - w2x * w3z
+                        nz = w2x * w3y - w2y * w3x
+                        other = f1
+                        ta = t2
+                    q = other * pw2 * pw1 * abs(_dot(nx, ny, nz, px, py, pz))
+                    if short:
+                        q = q * np.exp(-st * (ta + t3))
+                elif mc == _CONE:
+                    c = _dot(w1x, w1y, w1z, w2x, w2y, w2z)
+                    nx = t1 * (w2x - c * w1x)
+                    ny = t1 * (w2y - c * w1y)
+                    nz = t1 * (w2z - c * w1z)
+                    q = qw2 * f2 * pc1 * abs(_dot(nx, ny, nz, px, py, pz))
+                    if short:
+                        q = q * np.exp(-st * t1)
+                elif mc == _CYL:
+                    c = _dot(w1x, w1y, w1z, w2x, w2y, w2z)
+                    nx = t1 * (c * w2x - w1x)
+                    ny = t1 * (c * w2y - w1y)
+                    nz = t1 * (c * w2z - w1z)
+                    q = qw2 * pc1 * f1 * abs(_dot(nx, ny, nz, px, py, pz))
+                    if short:
+                        q = q * np.exp(-st * t2)
+                elif mc == _SS_SPHERE:
+                    tt = t1 * t1
+                    q = puv * f1 * abs(_dot(tt * w1x, tt * w1y, tt * w1z, px, py, pz))
+                elif mc == _SS_CONE:
+                    c = _dot(w1x, w1y, w1z, ax, ay, az)
+                    nx = t1 * (ax - c * w1x)
+                    ny = t1 * (ay - c * w1y)
+                    nz = t1 * (az - c * w1z)
+                    q = puv * pc1 * abs(_dot(nx, ny, nz, px, py, pz))
+                    if short:
+                        q = q * np.exp(-st * t1)
+                elif mc == _SS_DISK:
+                    nx = w1y * az - w1z * ay
+                    ny = w1z * ax - w1x * az
+                    nz = w1x * ay - w1y * ax
+                    sin2 = _dot(nx, ny, nz, nx, ny, nz)
+                    kf = t1 / max(sin2, 1e-200) if sin2 > 1e-200 else 0.0
+                    q = puv * _INV_2PI * abs(_dot(kf * nx, kf * ny, kf * nz, px, py, pz))
+                    if short:
+                        q = q * np.exp(-st * t1)
+                else:  # the single-scattering planes
+                    eux, euy, euz = ptab[ph, 7], ptab[ph, 8], ptab[ph, 9]
+                    evx, evy, evz = ptab[ph, 10], ptab[ph, 11], ptab[ph, 12]
+                    if mc == _SS_UV:
+                        nx = euy * evz - euz * evy
+                        ny = euz * evx - eux * evz
+                        nz = eux * evy - euy * evx
+                        pos = 0.5 * puv if mesh else 1.0
+                    elif mc == _SS_UT:
+                        nx = euy * w1z - euz * w1y
+                        ny = euz * w1x - eux * w1z
+                        nz = eux * w1y - euy * w1x
+                        pos = pv
+                    else:
+                        nx = evy * w1z - evz * w1y
+                        ny = evz * w1x - evx * w1z
+                        nz = evx * w1y - evy * w1x
+                        pos = pu
+                    q = pos * pw1
+                    q = q * abs(_dot(nx, ny, nz, px, py, pz))
+                    if mc == _SS_UV:
+                        q = q * f1
+                    elif short:
+                        q = q * np.exp(-st * t1)
+                # member_densities: nan_to_num(abs(q), nan=0, posinf=0)
+                q = abs(q)
+                if not (q < np.inf):
+                    q = 0.0
+            qb[jm] = q * q if power else q
+            den += qb[jm]
+        out[h] = qb[me] / den if den > 0.0 else 0.0
