@@ -7,6 +7,12 @@ A photon is extended only while some technique could still use its next segment 
 deepest look-back of any technique is three segments: the generalized planes rebuild
 ``x2, x1`` from ``x3``), so escaped photons cost a bounded amount of work and bias nothing.
 
+Speed (issue #6): the random numbers are drawn depth by depth exactly as the numpy
+implementation drew them (same calls, same sizes, same order) and ``cos``/``sin``/``log1p`` stay
+numpy's; the per-photon arithmetic of a depth step and the final scatter into the arrays below
+run in compiled loops (:mod:`psurf_core.trace_kernels`) with the same IEEE operations, so the
+output is bit-identical to it (``tests/test_trace_identity.py``).
+
 Vertex numbering: ``x[:, 0]`` is the light point and ``x[:, j]`` the photon's ``j``-th
 scattering vertex; segment ``j`` (stored at index ``j - 1``) goes from vertex ``j - 1`` to
 vertex ``j`` along ``w[:, j-1]`` with sampled length ``t[:, j-1]``. In the spec's notation of
@@ -20,8 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import sampling
-from .constants import MAX_TRACE_DEPTH, ROULETTE_START
-from .geometry import Blockers, blockers_of, inside_box, ray_box
+from .compiled import ctrl_c_kept
+from .constants import HG_ISOTROPIC_G, MAX_TRACE_DEPTH, ROULETTE_START
+from .geometry import Blockers, blockers_of
 from .scene import AreaLight, MeshLight, PointLight, Scene
 
 #: Deepest look-back (in segments) of any technique; see the module docstring.
@@ -175,6 +182,8 @@ def trace(
     n_photons : int
     rng : numpy.random.Generator
         The pass's photon generator.
+    blockers : Blockers, optional
+        ``blockers_of(scene)`` (built here when not given).
     max_depth : int, optional
         Segments to trace (default :func:`trace_depth`).
 
@@ -182,63 +191,94 @@ def trace(
     -------
     PhotonPaths
     """
+    with ctrl_c_kept():
+        return _trace(scene, n_photons, rng, blockers, max_depth)
+
+
+def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
+    """:func:`trace`: depth-major numpy draws, compiled steps (``trace_kernels``)."""
+    from . import trace_kernels as tk  # numba: imported on first use, not with psurf_core
+    from .geometry import _BOUNDS_PAD
+
     med = scene.medium
-    st, g = med.sigma_t, med.phase.g
+    st, g, albedo = med.sigma_t, med.phase.g, med.albedo
+    hg = abs(g) >= HG_ISOTROPIC_G  # sampling.sample_phase_cos's isotropic cut-off
+    bmin = np.asarray(med.bounds_min, dtype=float)
+    bmax = np.asarray(med.bounds_max, dtype=float)
     blockers = blockers_of(scene) if blockers is None else blockers
+    # Which segments Blockers.occluded must see: those whose box meets a blocker's box (its
+    # own first reject, repeated in the step kernel), every one when it has no boxes, none
+    # when nothing blocks. It then sees the rows it would have picked itself, in order.
+    if blockers.empty:
+        bounds, test_all = np.zeros((0, 2, 3)), False
+    elif blockers.bounds is None or blockers.planes is None:
+        bounds, test_all = np.zeros((0, 2, 3)), True
+    else:
+        bounds, test_all = np.ascontiguousarray(blockers.bounds, dtype=float), False
     depth = trace_depth(scene) if max_depth is None else int(max_depth)
     e = emit(scene, rng, n_photons)
     n = n_photons
 
-    # Work only on the active photons (compacted index list `act`). Per-depth results are
-    # kept compact (the active rows only) and scattered once into the full-size record at the
-    # end: allocating and stacking full-size slices at every depth cost more than the work.
-    oks_hist = [np.ones(n, dtype=bool)]  # prefix_ok per vertex
-    steps = []  # per segment j: (act, t, w, beta, x_j, clip) of its active photons
-    act = np.arange(n)
+    # State of the active photons, compacted in place (rows 0..m-1, in photon order):
+    # photon index, current vertex, direction of the next segment, weight.
+    idx = np.arange(n)
+    x = e["x0"].copy()
     w = e["w1"].copy()
     beta = e["beta"].copy()
-    x = e["x0"].copy()  # current vertex of every photon (the last one for finished photons)
+    m = n
+    oks = [np.ones(n, dtype=bool)]  # prefix_ok per vertex, (N,) each
+    # Step records, step-major (step j: rows rec_off[j-1] .. rec_off[j] - 1); grown by
+    # doubling. Scattered photon-major once at the end (tk.assemble).
+    cap = max(n * min(depth, 8), 1)
+    rec_idx = np.empty(cap, dtype=np.int64)
+    rec = np.empty((cap, tk.REC_COLS))
+    rec_off = [0]
+    near_pos = np.empty(n, dtype=np.int64)
+    near_a, near_b = np.empty((n, 3)), np.empty((n, 3))
+    near_inb = np.empty(n, dtype=bool)
+    empty = np.empty(0)
     for j in range(1, depth + 1):
-        # Segment j leaves vertex j-1. Roulette decides before sampling it (depth only).
-        if j > 1:
+        # Segment j leaves vertex j-1. Roulette decides before sampling it (depth only), and
+        # a photon goes on only while a technique can still use the segment.
+        scatter = j > 1
+        if scatter:
             q = roulette_survival(scene, j - 1)
-            keep = oks_hist[max(j - LOOKBACK, 0)][act]  # can a technique still use it?
-            if q < 1.0:
-                keep &= rng.random(act.size) < q
-                beta[act] /= q
-            act = act[keep]
-            w[act] = sampling.sample_phase(w[act], g, rng)
-            beta[act] *= med.albedo
-        ta = sampling.sample_free_flight(st, rng, act.size)
-        xa, wa = x[act], w[act]
-        xna = xa + ta[:, None] * wa
-        # Validity of the sampled prefix: in box and unoccluded.
+            u = rng.random(m) if q < 1.0 else empty
+            m = tk.select(m, idx, x, w, beta, oks[max(j - LOOKBACK, 0)], u, q, albedo)
+            # The draws of sample_phase (cosine, azimuth), then sample_free_flight: one call,
+            # the same stream as three.
+            r = rng.random(3 * m)
+            u_mu = r[:m]
+            phi = 2.0 * np.pi * r[m : 2 * m]
+            cphi, sphi = np.cos(phi), np.sin(phi)
+            lg = np.log1p(-r[2 * m :])
+        else:
+            u_mu = cphi = sphi = empty
+            lg = np.log1p(-rng.random(m))
+        off = rec_off[-1]
+        if off + m > rec_idx.shape[0]:
+            grow = max(2 * rec_idx.shape[0], off + m)
+            rec_idx = np.concatenate([rec_idx[:off], np.empty(grow - off, dtype=np.int64)])
+            rec = np.concatenate([rec[:off], np.empty((grow - off, tk.REC_COLS))])
         ok = np.zeros(n, dtype=bool)
-        sel = oks_hist[-1][act]
-        chk = act[sel]
-        if chk.size:
-            inb = inside_box(xna[sel], med.bounds_min, med.bounds_max)
-            ok[chk] = inb & ~blockers.occluded(xa[sel], xna[sel])
-        te, tx = ray_box(xa, wa, med.bounds_min, med.bounds_max)
-        clip = np.stack([np.clip(te, 0.0, ta), np.clip(tx, 0.0, ta)], axis=-1)
-        steps.append((act, ta, wa, beta[act], xna, clip))
-        x[act] = xna
-        oks_hist.append(ok)
-        if act.size == 0:
+        nn = tk.step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, lg, st, bmin, bmax,
+                     oks[-1], ok, test_all, bounds, _BOUNDS_PAD, rec_idx, rec, off, near_pos,
+                     near_a, near_b, near_inb)
+        if nn:
+            occ = blockers.occluded(near_a[:nn], near_b[:nn])
+            ok[near_pos[:nn]] = near_inb[:nn] & ~occ
+        rec_off.append(off + m)
+        oks.append(ok)
+        if m == 0:
             break
 
-    d = len(steps)
-    # Vertices depth-major (contiguous row copies carry a finished photon's last vertex
-    # forward), then one transposing copy; the rest is scattered into zeros directly.
-    xd = np.empty((d + 1, n, 3))
-    xd[0] = e["x0"]
-    ws, betas = np.zeros((n, d, 3)), np.zeros((n, d, 3))
-    ts, alives, clips = np.zeros((n, d)), np.zeros((n, d), dtype=bool), np.zeros((n, d, 2))
-    for i, (a, ta, wa, ba, xna, clip) in enumerate(steps):
-        xd[i + 1] = xd[i]
-        xd[i + 1, a] = xna
-        ws[a, i], betas[a, i], ts[a, i], alives[a, i], clips[a, i] = wa, ba, ta, True, clip
-    xs = np.ascontiguousarray(xd.transpose(1, 0, 2))
+    d = len(oks) - 1
+    xs = np.empty((n, d + 1, 3))
+    ws, betas = np.empty((n, d, 3)), np.empty((n, d, 3))
+    ts, alives, clips = np.empty((n, d)), np.empty((n, d), dtype=bool), np.empty((n, d, 2))
+    prefix_ok = np.empty((n, d + 1), dtype=bool)
+    tk.assemble(e["x0"], np.stack(oks), rec_idx, rec, np.array(rec_off, dtype=np.int64), xs,
+                ws, ts, betas, alives, clips, prefix_ok)
 
     return PhotonPaths(
         n_emitted=n,
@@ -252,6 +292,6 @@ def trace(
         t=ts,
         beta=betas,
         alive=alives,
-        prefix_ok=np.stack(oks_hist, axis=1),
+        prefix_ok=prefix_ok,
         clip=clips,
     )

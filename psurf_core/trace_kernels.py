@@ -1,0 +1,283 @@
+"""Compiled loops (numba) of :func:`psurf_core.trace.trace`: one depth step, and the assembly
+of the per-step records into ``PhotonPaths``' photon-major arrays.
+
+Every value equals the numpy expressions it replaces, bit for bit: the same IEEE operations in
+the same order (no ``fastmath``, so no fused multiply-add), each named in a comment beside
+it. The random numbers and the transcendental functions (``cos``, ``sin``, ``log1p``) stay in
+numpy (``trace.py``): numba's would be other implementations. ``sqrt``, ``+ - * /`` and
+comparisons are exactly rounded in both. ``tests/test_trace_identity.py`` checks the result
+against the output of the numpy implementation these loops replaced.
+
+The kernels are single-threaded and compiled once per clone (``cache=True``, in
+``__pycache__``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .constants import PARALLEL_EPS
+
+#: Columns of a step record (one row per sampled segment): ``t, w(3), beta(3), x(3), clip(2)``.
+REC_T, REC_W, REC_BETA, REC_X, REC_CLIP, REC_COLS = 0, 1, 4, 7, 10, 12
+
+#: Slack (scene units) of ``geometry.inside_box``.
+_INSIDE_EPS = 1e-9
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _direction_about(a0, a1, a2, ct, cphi, sphi):  # pragma: no cover - compiled
+    """``sampling.direction_about`` for one unit axis ``a``, ``cos_theta = ct`` and the
+    ``cos``/``sin`` of the azimuth (``sampling.orthonormal_basis``'s frame, Duff et al.)."""
+    sign = 1.0 if a2 >= 0.0 else -1.0
+    a = -1.0 / (sign + a2)
+    b = a0 * a1 * a
+    # b1 = (1 + sign n0^2 a, sign b, -sign n0); b2 = (b, sign + n1^2 a, -n1)
+    b10 = 1.0 + sign * (a0 * a0) * a
+    b11 = sign * b
+    b12 = -sign * a0
+    b20 = b
+    b21 = sign + (a1 * a1) * a
+    b22 = -a1
+    s2 = 1.0 - ct * ct
+    st = np.sqrt(s2 if s2 > 0.0 else 0.0)  # np.clip(., 0, None): max(x, 0)
+    p = st * cphi
+    q = st * sphi
+    return (p * b10 + q * b20 + ct * a0,
+            p * b11 + q * b21 + ct * a1,
+            p * b12 + q * b22 + ct * a2)
+
+
+@njit(cache=True, error_model="numpy")
+def select(m, idx, x, w, beta, ok_look, u, q, albedo):  # pragma: no cover - compiled
+    """Keep, in place and in order, the first ``m`` photons of the state that a technique can
+    still use (``ok_look[idx]``) and that survive roulette (``u < q``; no draw when ``q >= 1``),
+    scaling their weight by ``albedo / q`` (``beta / q * albedo``, as numpy did it).
+
+    Parameters
+    ----------
+    m : int
+        Active photons (the first ``m`` rows of the state).
+    idx : (P,) int64
+        Photon index of each state row.
+    x, w, beta : (P, 3) float
+        Current vertex, direction and weight of each state row.
+    ok_look : (N,) bool
+        ``prefix_ok`` at the deepest vertex a technique looks back to, per photon.
+    u : (m,) float
+        Roulette variates (ignored, may be empty, when ``q >= 1``).
+    q : float
+        Survival probability.
+    albedo : float
+        ``sigma_s / sigma_t``.
+
+    Returns
+    -------
+    int
+        Photons kept (the new ``m``).
+    """
+    roulette = q < 1.0
+    k = 0
+    for i in range(m):
+        if not ok_look[idx[i]]:
+            continue
+        if roulette and not u[i] < q:
+            continue
+        idx[k] = idx[i]
+        for c in range(3):
+            x[k, c] = x[i, c]
+            w[k, c] = w[i, c]
+            b = beta[i, c]
+            if roulette:
+                b = b / q
+            beta[k, c] = b * albedo
+        k += 1
+    return k
+
+
+@njit(cache=True, error_model="numpy")
+def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigma_t,
+         bmin, bmax, ok_prev, ok_cur, test_all, bounds, pad,
+         rec_idx, rec, off, near_pos, near_a, near_b, near_inb):  # pragma: no cover - compiled
+    """Sample segment ``j`` of the ``m`` active photons and record it.
+
+    Per state row: the scattered direction (when ``scatter``; ``sampling.sample_phase``), the
+    free-flight length ``t = -log1p(-u) / sigma_t``, the vertex ``x + t w``, the record row
+    ``off + i`` (photon, ``t``, ``w``, ``beta``, vertex, in-box clip of the segment), and the
+    new vertex's ``prefix_ok``: false unless the previous one is true, then whether the vertex
+    is inside the box and the segment unoccluded. Segments that may be occluded (their box
+    meets a blocker's padded box, the first reject of ``Blockers.occluded``; every one when
+    ``test_all``) are listed in ``near_*`` for the caller's exact test and their ``ok_cur`` is
+    left for it to write.
+
+    Parameters
+    ----------
+    m : int
+    idx : (P,) int64
+    x, w, beta : (P, 3) float
+        State rows; ``x`` and ``w`` are advanced in place.
+    scatter : bool
+        Sample a new direction (every segment but the first).
+    hg : bool
+        Henyey-Greenstein with ``g`` (else isotropic).
+    g : float
+    u_mu, cphi, sphi : (m,) float
+        Variates of the phase cosine, ``cos`` and ``sin`` of the azimuth (unused unless
+        ``scatter``).
+    log1p_neg_u : (m,) float
+        ``log1p(-u)`` of the free-flight variates.
+    sigma_t : float
+        Extinction (1/length).
+    bmin, bmax : (3,) float
+        Medium box.
+    ok_prev : (N,) bool
+        ``prefix_ok`` of the segment's start vertex, per photon.
+    ok_cur : (N,) bool
+        ``prefix_ok`` of its end vertex, written here (all false on entry).
+    test_all : bool
+        Blockers without boxes: list every segment that passes ``ok_prev``.
+    bounds : (B, 2, 3) float
+        Blockers' boxes (empty: nothing can occlude).
+    pad : float
+        Padding of those boxes (``geometry._BOUNDS_PAD``).
+    rec_idx : (R,) int64
+    rec : (R, REC_COLS) float
+        Record buffers, written at rows ``off .. off + m - 1``.
+    off : int
+    near_pos : (P,) int64
+    near_a, near_b : (P, 3) float
+    near_inb : (P,) bool
+        Segments for the exact occlusion test: photon, start, end, end inside the box.
+
+    Returns
+    -------
+    int
+        Segments listed in ``near_*``.
+    """
+    nb = bounds.shape[0]
+    lo_in0, lo_in1, lo_in2 = bmin[0] - _INSIDE_EPS, bmin[1] - _INSIDE_EPS, bmin[2] - _INSIDE_EPS
+    hi_in0, hi_in1, hi_in2 = bmax[0] + _INSIDE_EPS, bmax[1] + _INSIDE_EPS, bmax[2] + _INSIDE_EPS
+    nn = 0
+    for i in range(m):
+        p = idx[i]
+        if scatter:
+            if hg:
+                # sampling.sample_phase_cos: sq = (1 - g^2) / (1 - g + 2 g u), then
+                # clip((1 + g^2 - sq^2) / (2 g), -1, 1)
+                sq = (1.0 - g * g) / (1.0 - g + 2.0 * g * u_mu[i])
+                mu = (1.0 + g * g - sq * sq) / (2.0 * g)
+                mu = mu if mu > -1.0 else -1.0
+                mu = mu if mu < 1.0 else 1.0
+            else:
+                mu = 1.0 - 2.0 * u_mu[i]
+            w0, w1, w2 = _direction_about(w[i, 0], w[i, 1], w[i, 2], mu, cphi[i], sphi[i])
+            w[i, 0], w[i, 1], w[i, 2] = w0, w1, w2
+        else:
+            w0, w1, w2 = w[i, 0], w[i, 1], w[i, 2]
+        t = -log1p_neg_u[i] / sigma_t
+        a0, a1, a2 = x[i, 0], x[i, 1], x[i, 2]
+        b0, b1, b2 = a0 + t * w0, a1 + t * w1, a2 + t * w2
+        # geometry.ray_box of the segment's ray, then np.clip(t_enter / t_exit, 0, t)
+        te = -np.inf
+        tx = np.inf
+        for c in range(3):
+            dc = w[i, c]
+            inv = 1.0 / (PARALLEL_EPS if abs(dc) < PARALLEL_EPS else dc)
+            t0 = (bmin[c] - x[i, c]) * inv
+            t1 = (bmax[c] - x[i, c]) * inv
+            lo = t0 if t0 < t1 else t1
+            hi = t1 if t0 < t1 else t0
+            te = lo if c == 0 or lo > te else te
+            tx = hi if c == 0 or hi < tx else tx
+        ce = te if te > 0.0 else 0.0
+        ce = ce if ce < t else t
+        cx = tx if tx > 0.0 else 0.0
+        cx = cx if cx < t else t
+        r = off + i
+        rec_idx[r] = p
+        rec[r, REC_T] = t
+        rec[r, REC_W], rec[r, REC_W + 1], rec[r, REC_W + 2] = w0, w1, w2
+        rec[r, REC_BETA], rec[r, REC_BETA + 1], rec[r, REC_BETA + 2] = (beta[i, 0], beta[i, 1],
+                                                                       beta[i, 2])
+        rec[r, REC_X], rec[r, REC_X + 1], rec[r, REC_X + 2] = b0, b1, b2
+        rec[r, REC_CLIP], rec[r, REC_CLIP + 1] = ce, cx
+        x[i, 0], x[i, 1], x[i, 2] = b0, b1, b2
+        if not ok_prev[p]:
+            continue
+        inb = (lo_in0 <= b0 <= hi_in0) and (lo_in1 <= b1 <= hi_in1) and (lo_in2 <= b2 <= hi_in2)
+        near = test_all
+        if not near and nb > 0:
+            l0, h0 = min(a0, b0), max(a0, b0)
+            l1, h1 = min(a1, b1), max(a1, b1)
+            l2, h2 = min(a2, b2), max(a2, b2)
+            for k in range(nb):
+                if (l0 <= bounds[k, 1, 0] + pad and h0 >= bounds[k, 0, 0] - pad
+                        and l1 <= bounds[k, 1, 1] + pad and h1 >= bounds[k, 0, 1] - pad
+                        and l2 <= bounds[k, 1, 2] + pad and h2 >= bounds[k, 0, 2] - pad):
+                    near = True
+                    break
+        if near:
+            near_pos[nn] = p
+            near_a[nn, 0], near_a[nn, 1], near_a[nn, 2] = a0, a1, a2
+            near_b[nn, 0], near_b[nn, 1], near_b[nn, 2] = b0, b1, b2
+            near_inb[nn] = inb
+            nn += 1
+        else:
+            ok_cur[p] = inb
+    return nn
+
+
+@njit(cache=True, error_model="numpy")
+def assemble(x0, oks, rec_idx, rec, rec_off, xs, ws, ts, betas, alives, clips,
+             prefix_ok):  # pragma: no cover - compiled
+    """Scatter the step records into the photon-major ``PhotonPaths`` arrays.
+
+    Each step's records are in increasing photon order and a photon's segments are
+    consecutive from segment 1, so one cursor per step walks them while the photons are
+    written in order. Past a photon's last segment: zeros, ``alive`` false, and its last
+    vertex carried forward in ``x``.
+
+    Parameters
+    ----------
+    x0 : (N, 3) float
+        Light points.
+    oks : (D + 1, N) bool
+        ``prefix_ok`` per vertex.
+    rec_idx, rec : (R,) int64, (R, REC_COLS) float
+        Step records; step ``s`` holds rows ``rec_off[s] .. rec_off[s + 1] - 1``.
+    rec_off : (D + 1,) int64
+    xs, ws, ts, betas, alives, clips, prefix_ok
+        Outputs, shapes as in ``PhotonPaths`` (written entirely).
+    """
+    n = xs.shape[0]
+    d = ts.shape[1]
+    cur = rec_off[:d].copy()
+    for p in range(n):
+        for c in range(3):
+            xs[p, 0, c] = x0[p, c]
+        run = True
+        for s in range(d):
+            r = cur[s]
+            if run and r < rec_off[s + 1] and rec_idx[r] == p:
+                cur[s] = r + 1
+                ts[p, s] = rec[r, REC_T]
+                for c in range(3):
+                    ws[p, s, c] = rec[r, REC_W + c]
+                    betas[p, s, c] = rec[r, REC_BETA + c]
+                    xs[p, s + 1, c] = rec[r, REC_X + c]
+                clips[p, s, 0] = rec[r, REC_CLIP]
+                clips[p, s, 1] = rec[r, REC_CLIP + 1]
+                alives[p, s] = True
+            else:
+                run = False
+                ts[p, s] = 0.0
+                for c in range(3):
+                    ws[p, s, c] = 0.0
+                    betas[p, s, c] = 0.0
+                    xs[p, s + 1, c] = xs[p, s, c]
+                clips[p, s, 0] = 0.0
+                clips[p, s, 1] = 0.0
+                alives[p, s] = False
+        for s in range(d + 1):
+            prefix_ok[p, s] = oks[s, p]
