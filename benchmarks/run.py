@@ -11,9 +11,9 @@ What is measured (one process, one core; every rate names its own numerator and 
   stage): photon vertices traced/s (``trace``), primitives created/s (``create``), candidate
   ray-primitive pairs found/s (``binning``) and tested/s (``intersect``), hits evaluated/s
   (``evaluate``), MIS weights/s (``mis``). A technique with a fused path
-  (``Technique.fused_pass``, used by ``photon_pass`` when it is alone in its group) is timed
-  as one ``fused`` stage (binning + intersect + evaluate; its candidate pairs are not
-  counted).
+  (``Technique.fused_pass``, which ``photon_pass`` uses wherever it applies, MIS groups
+  included) is timed as one ``fused`` stage (binning + intersect + evaluate; its candidate
+  pairs are not counted).
 * ``hits_per_second``: *evaluated hits* (pairs with a valid root whose contribution, shadow
   tests included, was computed) divided by the whole time spent finding and evaluating them:
   binning + intersect + evaluate + MIS weights + fused.
@@ -112,12 +112,17 @@ def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
                 prims = tech.create(paths, ctx)
                 pt["create"] += time.perf_counter() - a
                 pt["prims"] += len(prims)
-                fused = tech.fused_pass(prims, paths, rays, ctx) if len(group) == 1 else None
+                fused = tech.fused_pass(prims, paths, rays, ctx)
                 if fused is not None:
                     # As photon_pass runs it: binning, intersect and evaluate in one step
-                    # (its candidate pairs are not counted).
+                    # (its candidate pairs are not counted), then the MIS weights.
                     for hits, _ in _timed_iter(iter(fused), pt, "fused"):
                         pt["hits"] += len(hits)
+                        if len(group) > 1:
+                            a = time.perf_counter()
+                            mis_weights(tech, group, est.weighting, hits, prims, paths, rays,
+                                        ctx)
+                            pt["mis"] += time.perf_counter() - a
                     continue
                 pairs = candidate_pairs(scene.camera, rays, prims.lo, prims.hi,
                                         settings.max_pairs, prims.hull,

@@ -136,9 +136,9 @@ def photon_pass(
                 prims = tech.create(paths, ctx)
                 if record is not None:
                     record.prims[(tech.name, b)] = prims
-                # A technique alone in its group may find and evaluate its hits in one fused
-                # step (same hits and values); MIS groups run the stages.
-                chunks = tech.fused_pass(prims, paths, rays, ctx) if len(group) == 1 else None
+                # A technique may find and evaluate its hits in one fused step: the same hits
+                # (with the same data, so MIS weights reconstruct them) and values as the stages.
+                chunks = tech.fused_pass(prims, paths, rays, ctx)
                 if chunks is None:
                     chunks = _stage_chunks(tech, prims, paths, rays, ctx, settings, box)
                 for hits, raw in chunks:

@@ -131,6 +131,13 @@ class GeneralizedPlane(Technique):
         return finish(beta1(paths, prims.photon[p], prims.K[p]), scal, valid,
                       hits.data["n_dot_psi"])
 
+    # ------------------------------------------------------------------ Fused
+    def fused_pass(self, prims, paths, rays, ctx):
+        """Intersect + Evaluate in one compiled loop (:mod:`.surfaces_fused`)."""
+        from .surfaces_fused import surface_chunks
+
+        return surface_chunks(self, self.which, prims, paths, rays, ctx)
+
     # ------------------------------------------------------------------ Reconstruct
     def reconstruct(self, hits, prims, paths, rays, ctx):
         p = hits.prim
