@@ -137,7 +137,17 @@ def sample_triangle_barycentric(rng: np.random.Generator, n: int) -> np.ndarray:
 
 
 def sample_discrete(pmf: np.ndarray, rng: np.random.Generator, n: int) -> np.ndarray:
-    """Indices drawn with probabilities ``pmf`` (K,)."""
+    """Indices drawn with probabilities ``pmf`` (K,).
+
+    Returns
+    -------
+    (n,) intp
+        One variate consumed per index, also when ``K = 1`` (always index 0: the search
+        below would return ``0`` or be clamped to it), so the generator's stream is the same.
+    """
+    if len(pmf) == 1:
+        rng.random(n)
+        return np.zeros(n, dtype=np.intp)
     cdf = np.cumsum(pmf)
     cdf /= cdf[-1]
     return np.minimum(np.searchsorted(cdf, rng.random(n), side="right"), len(pmf) - 1)

@@ -125,43 +125,61 @@ def emit(scene: Scene, rng: np.random.Generator, n: int):
     -------
     dict of (n, ...) arrays: ``light, light_pmf, light_uv, tri, light_normal, x0, w1, beta``.
     """
+    from . import trace_kernels as tk  # numba: imported on first use, not with psurf_core
+
     pmf = scene.light_pmf
     light = sampling.sample_discrete(pmf, rng, n)
-    x0 = np.zeros((n, 3))
-    w1 = np.zeros((n, 3))
+    # Every photon has a light and every light writes x0, w1, normal and beta of its photons.
+    x0, w1, normal, beta = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     uv = np.zeros((n, 2))
     tri = np.full(n, -1, dtype=np.int64)
-    normal = np.zeros((n, 3))
-    beta = np.zeros((n, 3))
     for li, lt in enumerate(scene.lights):
         sel = np.flatnonzero(light == li)
         m = sel.size
         if m == 0:
             continue
-        beta[sel] = lt.power_rgb / pmf[li]
+        # One light for every photon (the usual case): the kernels write the outputs directly.
+        whole = m == n
+        rows = slice(None) if whole else sel
+        xo = x0 if whole else np.empty((m, 3))
+        wo = w1 if whole else np.empty((m, 3))
+        beta[rows] = lt.power_rgb / pmf[li]
+        # One rng.random call per light: the same stream as the samplers' separate draws
+        # (each listed below in their order).
         if isinstance(lt, PointLight):
-            x0[sel] = lt.position
-            w1[sel] = sampling.sample_uniform_sphere(rng, m)
-            normal[sel] = lt.axis
+            r = rng.random(2 * m)  # sample_uniform_sphere: z, azimuth
+            phi = 2.0 * np.pi * r[m:]
+            tk.emit_point(r[:m], np.cos(phi), np.sin(phi), wo)
+            x0[rows] = lt.position
+            normal[rows] = lt.axis
         elif isinstance(lt, AreaLight):
-            u = rng.random((m, 2))
-            uv[sel] = u
-            x0[sel] = lt.corner + u[:, :1] * lt.edge_u + u[:, 1:] * lt.edge_v
-            nl = np.broadcast_to(lt.normal, (m, 3))
-            normal[sel] = nl
-            w1[sel] = sampling.sample_cosine_hemisphere(np.ascontiguousarray(nl), rng)
+            r = rng.random(4 * m)  # (u, v) per photon; sample_cosine_hemisphere: cos^2, azimuth
+            u = r[: 2 * m].reshape(m, 2)
+            phi = 2.0 * np.pi * r[3 * m :]
+            nl = lt.normal
+            tk.emit_area(u, r[2 * m : 3 * m], np.cos(phi), np.sin(phi), lt.corner, lt.edge_u,
+                         lt.edge_v, nl, xo, wo)
+            uv[rows] = u
+            normal[rows] = nl
         elif isinstance(lt, MeshLight):
             k = sampling.sample_discrete(lt.areas / lt.area, rng, m)
-            b = sampling.sample_triangle_barycentric(rng, m)
-            tr = lt.triangles[k]
-            uv[sel] = b
+            # sample_triangle_barycentric: sqrt-variate, second variate; then cos^2, azimuth
+            r = rng.random(4 * m)
+            phi = 2.0 * np.pi * r[3 * m :]
+            bo = uv if whole else np.empty((m, 2))
+            no = normal if whole else np.empty((m, 3))
+            tk.emit_mesh(k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], np.cos(phi), np.sin(phi),
+                         np.ascontiguousarray(lt.triangles, dtype=float),
+                         np.ascontiguousarray(lt.normals, dtype=float), bo, xo, no, wo)
             tri[sel] = k
-            x0[sel] = tr[:, 0] + b[:, :1] * (tr[:, 1] - tr[:, 0]) + b[:, 1:] * (tr[:, 2] - tr[:, 0])
-            nk = lt.normals[k]
-            normal[sel] = nk
-            w1[sel] = sampling.sample_cosine_hemisphere(nk, rng)
+            if not whole:
+                uv[sel], normal[sel] = bo, no
         else:  # pragma: no cover - the scene loader admits no other light
             raise TypeError(f"unknown light {lt!r}")
+        if not whole:
+            if not isinstance(lt, PointLight):
+                x0[sel] = xo
+            w1[sel] = wo
     return dict(light=light, light_pmf=pmf[light], light_uv=uv, tri=tri, light_normal=normal,
                 x0=x0, w1=w1, beta=beta)
 

@@ -281,3 +281,80 @@ def assemble(x0, oks, rec_idx, rec, rec_off, xs, ws, ts, betas, alives, clips,
                 alives[p, s] = False
         for s in range(d + 1):
             prefix_ok[p, s] = oks[s, p]
+
+
+# --------------------------------------------------------------------------- emission
+@njit(cache=True, error_model="numpy")
+def emit_point(u_z, cphi, sphi, w_out):  # pragma: no cover - compiled
+    """``sampling.sample_uniform_sphere`` from its variates: ``z = 1 - 2 u``,
+    ``r = sqrt(max(1 - z^2, 0))``, ``w = (r cos phi, r sin phi, z)``.
+
+    Parameters
+    ----------
+    u_z, cphi, sphi : (M,) float
+    w_out : (M, 3) float
+        Written.
+    """
+    for i in range(u_z.shape[0]):
+        z = 1.0 - 2.0 * u_z[i]
+        s2 = 1.0 - z * z
+        r = np.sqrt(s2 if s2 > 0.0 else 0.0)
+        w_out[i, 0] = r * cphi[i]
+        w_out[i, 1] = r * sphi[i]
+        w_out[i, 2] = z
+
+
+@njit(cache=True, error_model="numpy")
+def emit_area(u, u_c, cphi, sphi, corner, edge_u, edge_v, normal, x_out,
+              w_out):  # pragma: no cover - compiled
+    """Points ``corner + u0 edge_u + u1 edge_v`` and cosine-weighted directions about the
+    normal (``sampling.sample_cosine_hemisphere``: ``cos_theta = sqrt(u_c)``).
+
+    Parameters
+    ----------
+    u : (M, 2) float
+        Parallelogram coordinates.
+    u_c, cphi, sphi : (M,) float
+        Variate of ``cos_theta^2``, ``cos``/``sin`` of the azimuth.
+    corner, edge_u, edge_v, normal : (3,) float
+    x_out, w_out : (M, 3) float
+        Written.
+    """
+    for i in range(u.shape[0]):
+        for c in range(3):
+            x_out[i, c] = corner[c] + u[i, 0] * edge_u[c] + u[i, 1] * edge_v[c]
+        w_out[i, 0], w_out[i, 1], w_out[i, 2] = _direction_about(
+            normal[0], normal[1], normal[2], np.sqrt(u_c[i]), cphi[i], sphi[i])
+
+
+@njit(cache=True, error_model="numpy")
+def emit_mesh(k, u_s, u_r, u_c, cphi, sphi, triangles, normals, bary_out, x_out, n_out,
+              w_out):  # pragma: no cover - compiled
+    """Uniform points on the chosen triangles (``sampling.sample_triangle_barycentric``:
+    ``(1 - sqrt(u_s), u_r sqrt(u_s))``; ``v0 + b0 (v1 - v0) + b1 (v2 - v0)``) and
+    cosine-weighted directions about their normals.
+
+    Parameters
+    ----------
+    k : (M,) int
+        Triangle of each photon.
+    u_s, u_r, u_c, cphi, sphi : (M,) float
+        Barycentric variates, variate of ``cos_theta^2``, ``cos``/``sin`` of the azimuth.
+    triangles : (F, 3, 3) float
+    normals : (F, 3) float
+    bary_out : (M, 2) float
+    x_out, n_out, w_out : (M, 3) float
+        Written.
+    """
+    for i in range(k.shape[0]):
+        f = k[i]
+        su = np.sqrt(u_s[i])
+        b0 = 1.0 - su
+        b1 = u_r[i] * su
+        bary_out[i, 0], bary_out[i, 1] = b0, b1
+        for c in range(3):
+            v0 = triangles[f, 0, c]
+            x_out[i, c] = v0 + b0 * (triangles[f, 1, c] - v0) + b1 * (triangles[f, 2, c] - v0)
+            n_out[i, c] = normals[f, c]
+        w_out[i, 0], w_out[i, 1], w_out[i, 2] = _direction_about(
+            normals[f, 0], normals[f, 1], normals[f, 2], np.sqrt(u_c[i]), cphi[i], sphi[i])

@@ -28,7 +28,7 @@ if __name__ == "__main__":  # pragma: no cover - fixture writer
     sys.path.insert(0, str(ROOT))
 
 from psurf_core.geometry import blockers_of  # noqa: E402
-from psurf_core.scene import BoxOccluder, MeshOccluder, SphereOccluder  # noqa: E402
+from psurf_core.scene import BoxOccluder, MeshOccluder, Phase, SphereOccluder  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
 from psurf_core.trace import PhotonPaths, trace  # noqa: E402
 
@@ -51,22 +51,40 @@ def _mixed_occluders():
     return replace(base, occluders=occ)
 
 
+def _multi_light():
+    """Point, area and mesh lights in one scene (photons split between them by power), the
+    mixed occluders, a backward-scattering medium with a strong albedo."""
+    base = _mixed_occluders()
+    point = replace(base.lights[0], intensity=base.lights[0].intensity / 12)  # power ~ the others
+    lights = (point, load_scene(ROOT / "scenes/area.toml").lights[0],
+              load_scene(ROOT / "scenes/mesh_light.toml").lights[0])
+    med = replace(base.medium, sigma_s=1.6, sigma_a=0.1, phase=Phase("hg", -0.4))
+    return replace(base, lights=lights, medium=med)
+
+
 def _scene(name: str):
     if name == "mixed_occluders":
         return _mixed_occluders()
+    if name == "multi_light":
+        return _multi_light()
+    if name == "near_isotropic":  # |g| below HG_ISOTROPIC_G: sampled as isotropic
+        s = load_scene(ROOT / "scenes/hg.toml")
+        return replace(s, medium=replace(s.medium, phase=Phase("hg", 5e-4)))
     return load_scene(ROOT / f"scenes/{name}.toml")
 
 
 #: name -> (scene, photons, seed, max_scatter override or None, max_depth or None)
 SMALL = {
-    **{f"{s}": (s, 48, 10 + i, None, None) for i, s in enumerate(BUNDLED)},
-    "mixed_occluders": ("mixed_occluders", 48, 30, None, None),
+    **{f"{s}": (s, 32, 10 + i, None, None) for i, s in enumerate(BUNDLED)},
+    "mixed_occluders": ("mixed_occluders", 32, 30, None, None),
     "area_k2": ("area", 40, 31, 2, None),
     "hg_k3": ("hg", 40, 32, 3, None),
     "mesh_light_k1": ("mesh_light", 40, 33, 1, None),
     "point_depth1": ("point", 30, 34, None, 1),
     "area_one": ("area", 1, 35, None, None),
     "area_none": ("area", 0, 36, None, None),
+    "multi_light": ("multi_light", 60, 37, None, None),
+    "near_isotropic": ("near_isotropic", 40, 38, None, None),
 }
 LARGE = {
     "area_batch": ("area", 1 << 15, 40, None, None),
@@ -75,6 +93,7 @@ LARGE = {
     "mesh_light_deep": ("mesh_light", 8_000, 43, None, None),
     "mixed_occluders_deep": ("mixed_occluders", 12_000, 44, None, None),
     "study_occluder_k4": ("study_occluder", 10_000, 45, 4, None),
+    "multi_light_deep": ("multi_light", 12_000, 46, None, None),
 }
 
 FIELDS = [f.name for f in fields(PhotonPaths)]
