@@ -22,10 +22,13 @@ Tables (one array per role: every array argument of a compiled call costs refere
 ``blk`` (N, 27) float64
     Blockers (``planes_fused._blocker_table``).
 
-Each kernel returns ``n, n_defer, idx (cap, 2) int64 [ray, prim], f (cap, F_out) float64,
-st (cap, 3) int8`` (shadow status of up to three segments, in the stage path's order); the
-first ``n`` rows are the hits. A value is 0 where a test said blocked and unmasked where a
-status is ``_DEFER``. Single-threaded: the output order is span, pixel, ray, root.
+Each kernel returns ``n, n_defer`` (hits, hits with a ``_DEFER`` status) and arrays of
+``cap`` rows whose first ``n`` are the hits: ``ray, prim`` (int64), ``s``, the roots
+(quadrics: ``t`` and ``w1`` (cap, 3); planes: ``t3, tv``), ``n_dot_psi``, ``value`` (cap, 3)
+and ``status`` (cap, 3) int8 (shadow status of up to three segments, in the stage path's
+order; unused ones ``_CLEAR``). A value is 0 where a test said blocked and unmasked where a
+status is ``_DEFER``. Separate arrays, not one table: the hits' fields are then contiguous
+slices, no copies. Single-threaded: the output order is span, pixel, ray, root.
 """
 
 from __future__ import annotations
@@ -44,10 +47,6 @@ _CONE_COLS = dict(x1=0, w2=3, c1=6, T1=7, beta=8, width=11)
 _CYL_COLS = dict(x2=0, w2=3, c1=6, s1=7, T1=8, T2=9, own=10, beta=11, width=14)
 _GPLANE_COLS = dict(origin=0, w3=3, v=6, x3=9, w2=12, w1=15, Tu=18, Tv=19, T2=20, own=21,
                     beta=22, vxu=25, width=28)
-
-#: Output float columns: quadrics ``s, t, w1 (3), ndp, value (3)``; planes ``s, t3, tv, ndp,
-#: value (3)``.
-_QUAD_OUT, _PLANE_OUT = 9, 7
 
 _TWO_PI = 2.0 * np.pi
 _EPS_BOX = 1e-9  # geometry.inside_box tolerance
@@ -112,14 +111,14 @@ def _status(a0, a1, a2, b0, b1, b2, blk):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _emit(o_idx, o_f, o_st, n, r, p, scal, pt, cb, st0, st1, st2):  # pragma: no cover
-    """Row ``n``: indices, value ``beta * scal`` in the last three float columns, statuses."""
-    o_idx[n, 0] = r
-    o_idx[n, 1] = p
-    k = o_f.shape[1] - 3
-    o_f[n, k] = pt[p, cb] * scal
-    o_f[n, k + 1] = pt[p, cb + 1] * scal
-    o_f[n, k + 2] = pt[p, cb + 2] * scal
+def _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, cb, st0, st1, st2):  # pragma: no cover
+    """Row ``n``: ray and primitive, value ``beta * scal`` (``beta``: columns ``cb..cb+2`` of
+    ``pt``), statuses; returns 1 if a status is ``_DEFER``."""
+    o_ray[n] = r
+    o_prim[n] = p
+    o_val[n, 0] = pt[p, cb] * scal
+    o_val[n, 1] = pt[p, cb + 1] * scal
+    o_val[n, 2] = pt[p, cb + 2] * scal
     o_st[n, 0] = st0
     o_st[n, 1] = st1
     o_st[n, 2] = st2
@@ -129,11 +128,11 @@ def _emit(o_idx, o_f, o_st, n, r, p, scal, pt, cb, st0, st1, st2):  # pragma: no
 @njit(cache=True, error_model="numpy")
 def _cone_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                  cap):  # pragma: no cover - compiled
-    """Hits and values of ``PhotonCone.intersect`` + ``evaluate`` (see the module docstring);
-    float columns ``s, t1, w1 (3), n_dot_psi, value (3)``."""
-    o_idx = np.empty((cap, 2), np.int64)
-    o_f = np.empty((cap, _QUAD_OUT))
-    o_st = np.zeros((cap, 3), np.int8)
+    """Hits and values of ``PhotonCone.intersect`` + ``evaluate`` (see the module docstring):
+    ``t = t1``, status of ``x1 -> x0``."""
+    o_ray, o_prim = np.empty(cap, np.int64), np.empty(cap, np.int64)
+    o_s, o_t, o_ndp = np.empty(cap), np.empty(cap), np.empty(cap)
+    o_w, o_val, o_st = np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3), np.int8)
     n = 0
     n_defer = 0
     sig_t = med[0]
@@ -188,26 +187,26 @@ def _cone_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                         if not short:
                             scal = scal * np.exp(-sig_t * t1)
                         scal = scal / ndp
-                    n_defer += _emit(o_idx, o_f, o_st, n, r, p, scal, pt, 8, st0, _CLEAR,
-                                     _CLEAR)
-                    o_f[n, 0] = s
-                    o_f[n, 1] = t1
-                    o_f[n, 2] = e0
-                    o_f[n, 3] = e1
-                    o_f[n, 4] = e2
-                    o_f[n, 5] = ndp
+                    n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 8, st0,
+                                     _CLEAR, _CLEAR)
+                    o_s[n] = s
+                    o_t[n] = t1
+                    o_w[n, 0] = e0
+                    o_w[n, 1] = e1
+                    o_w[n, 2] = e2
+                    o_ndp[n] = ndp
                     n += 1
-    return n, n_defer, o_idx, o_f, o_st
+    return n, n_defer, o_ray, o_prim, o_s, o_t, o_w, o_ndp, o_val, o_st
 
 
 @njit(cache=True, error_model="numpy")
 def _cylinder_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                      cap):  # pragma: no cover - compiled
-    """Hits and values of ``PhotonCylinder.intersect`` + ``evaluate``; float columns ``s, t2,
-    w1 (3), n_dot_psi, value (3)``; statuses of ``x2 -> x1`` and ``x1 -> x0``."""
-    o_idx = np.empty((cap, 2), np.int64)
-    o_f = np.empty((cap, _QUAD_OUT))
-    o_st = np.zeros((cap, 3), np.int8)
+    """Hits and values of ``PhotonCylinder.intersect`` + ``evaluate``: ``t = t2``, statuses of
+    ``x2 -> x1`` and ``x1 -> x0``."""
+    o_ray, o_prim = np.empty(cap, np.int64), np.empty(cap, np.int64)
+    o_s, o_t, o_ndp = np.empty(cap), np.empty(cap), np.empty(cap)
+    o_w, o_val, o_st = np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3), np.int8)
     n = 0
     n_defer = 0
     sig_t = med[0]
@@ -275,26 +274,27 @@ def _cylinder_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                         if not short:
                             scal = scal * np.exp(-sig_t * t2)
                         scal = scal / ndp
-                    n_defer += _emit(o_idx, o_f, o_st, n, r, p, scal, pt, 11, st0, st1, _CLEAR)
-                    o_f[n, 0] = s
-                    o_f[n, 1] = t2
-                    o_f[n, 2] = m0
-                    o_f[n, 3] = m1
-                    o_f[n, 4] = m2
-                    o_f[n, 5] = ndp
+                    n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 11, st0,
+                                     st1, _CLEAR)
+                    o_s[n] = s
+                    o_t[n] = t2
+                    o_w[n, 0] = m0
+                    o_w[n, 1] = m1
+                    o_w[n, 2] = m2
+                    o_ndp[n] = ndp
                     n += 1
-    return n, n_defer, o_idx, o_f, o_st
+    return n, n_defer, o_ray, o_prim, o_s, o_t, o_w, o_ndp, o_val, o_st
 
 
 @njit(cache=True, error_model="numpy")
 def _gplane_kernel(spans, width, order, pix, rt, pt, med, blk, short, t1t3,
                    cap):  # pragma: no cover - compiled
     """Hits and values of ``GeneralizedPlane.intersect`` + ``evaluate`` (``t1t3``: the
-    ``[t1, t3]`` plane, else ``[t2, t3]``); float columns ``s, t3, tv, n_dot_psi, value
-    (3)``; statuses of ``x3 -> x2``, ``x2 -> x1``, ``x1 -> x0``."""
-    o_idx = np.empty((cap, 2), np.int64)
-    o_f = np.empty((cap, _PLANE_OUT))
-    o_st = np.zeros((cap, 3), np.int8)
+    ``[t1, t3]`` plane, else ``[t2, t3]``): statuses of ``x3 -> x2``, ``x2 -> x1``,
+    ``x1 -> x0``."""
+    o_ray, o_prim = np.empty(cap, np.int64), np.empty(cap, np.int64)
+    o_s, o_t3, o_tv, o_ndp = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
+    o_val, o_st = np.empty((cap, 3)), np.empty((cap, 3), np.int8)
     n = 0
     n_defer = 0
     sig_t = med[0]
@@ -361,10 +361,11 @@ def _gplane_kernel(spans, width, order, pix, rt, pt, med, blk, short, t1t3,
                     if not short:
                         scal = scal * np.exp(-sig_t * (t3 + tv))
                     scal = scal / ndp
-                n_defer += _emit(o_idx, o_f, o_st, n, r, p, scal, pt, 22, st0, st1, st2)
-                o_f[n, 0] = s
-                o_f[n, 1] = t3
-                o_f[n, 2] = tv
-                o_f[n, 3] = ndp
+                n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 22, st0, st1,
+                                 st2)
+                o_s[n] = s
+                o_t3[n] = t3
+                o_tv[n] = tv
+                o_ndp[n] = ndp
                 n += 1
-    return n, n_defer, o_idx, o_f, o_st
+    return n, n_defer, o_ray, o_prim, o_s, o_t3, o_tv, o_ndp, o_val, o_st

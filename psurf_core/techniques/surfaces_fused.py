@@ -146,25 +146,22 @@ def _fused_chunks(tech, kind, prims, paths, rays, ctx, bl, order, start, counts)
         sp = spans[a:b]
         w = int(cam.width)
         if kind == "cone":
-            n, n_defer, idx, f, st = _cone_kernel(sp, w, order, pix, rt, pt, mv, bl, short, cap)
+            out = _cone_kernel(sp, w, order, pix, rt, pt, mv, bl, short, cap)
         elif kind == "cylinder":
-            n, n_defer, idx, f, st = _cylinder_kernel(sp, w, order, pix, rt, pt, mv, bl, short,
-                                                      cap)
+            out = _cylinder_kernel(sp, w, order, pix, rt, pt, mv, bl, short, cap)
         else:
-            n, n_defer, idx, f, st = _gplane_kernel(sp, w, order, pix, rt, pt, mv, bl, short,
-                                                    kind == "t1t3", cap)
+            out = _gplane_kernel(sp, w, order, pix, rt, pt, mv, bl, short, kind == "t1t3", cap)
+        n, n_defer = out[:2]
         if n == 0:
             continue
-        ray, prim, s = c(idx[:n, 0]), c(idx[:n, 1]), c(f[:n, 0])
-        val = c(f[:n, -3:])
+        ray, prim, s, r0, r1, ndp, val, st = (x[:n] for x in out[2:])
         if kind in ("cone", "cylinder"):
-            data = {"t1" if kind == "cone" else "t2": c(f[:n, 1]), "w1": c(f[:n, 2:5]),
-                    "n_dot_psi": c(f[:n, 5])}
+            data = {"t1" if kind == "cone" else "t2": r0, "w1": r1, "n_dot_psi": ndp}
         else:
-            data = dict(t3=c(f[:n, 1]), tv=c(f[:n, 2]), n_dot_psi=c(f[:n, 3]))
+            data = dict(t3=r0, tv=r1, n_dot_psi=ndp)
         hits = Hits(ray, prim, s, data)
         if n_defer:
-            _resolve(kind, ctx.blockers, rays, prims, hits, st[:n], val)
+            _resolve(kind, ctx.blockers, rays, prims, hits, st, val)
         yield hits, val
 
 
