@@ -214,6 +214,11 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
     ``code``: the hits' technique; ``r0, r1, wv``: its hit data (``_HIT_KEYS``); ``mem``:
     :func:`member_table`; ``par``: ``sigma_t, g, power (0/1), phase constants``;
     ``ptab``: :func:`photon_table`. Mirrors ``reconstruct`` + ``Pdfs`` + each ``density``.
+
+    Hits come grouped by primitive (~100 per primitive), so the photon's own record, its
+    pdfs and which members can produce it are computed when the primitive changes; per hit
+    only what the technique's roots replace is recomputed. Every ``exp`` is taken before
+    the densities: a call inside them would make the compiler keep their values in memory.
     """
     st = par[0]
     g = par[1]
@@ -222,32 +227,89 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
     hg_c = par[4]
     nan = np.nan
     nm = mem.shape[0]
+    # The densities the group needs, and the short variants' extra factors.
+    has = np.zeros(11, np.bool_)
+    short = np.zeros(11, np.bool_)
+    for jm in range(nm):
+        has[mem[jm, 0]] = True
+        if mem[jm, 1] != 0:
+            short[mem[jm, 0]] = True
+    h_pl, h_13, h_23, h_co, h_cy = has[_PLANE], has[_GP13], has[_GP23], has[_CONE], has[_CYL]
+    h_ss, h_sc, h_sd = has[_SS_SPHERE], has[_SS_CONE], has[_SS_DISK]
+    h_uv, h_ut, h_vt = has[_SS_UV], has[_SS_UT], has[_SS_VT]
+    s_t1 = short[_CONE] or short[_SS_CONE] or short[_SS_DISK] or short[_SS_UT] or short[_SS_VT]
+    s_t2, s_12, s_13, s_23 = short[_CYL], short[_PLANE], short[_GP13], short[_GP23]
+    # What the hits' technique replaces.
+    set_t1 = (code == _PLANE or code == _GP13 or code == _CONE or code == _SS_CONE
+              or code == _SS_DISK or code == _SS_UT or code == _SS_VT)
+    set_t2 = code == _PLANE or code == _GP23 or code == _CYL
+    set_t3 = code == _GP13 or code == _GP23
+    set_w1 = (code == _CONE or code == _CYL or code == _SS_SPHERE or code == _SS_CONE
+              or code == _SS_DISK)
+    set_uv = code == _SS_UV or code == _SS_UT or code == _SS_VT
+    ok = np.zeros(nm, np.bool_)
+    qt = np.zeros(11)  # long density of each technique code on the current hit
+    sf = np.ones(11)  # short factor of each code
     qb = np.zeros(nm)
+    last = -1
+    K = 0
+    ph = 0
+    kind = 0.0
+    pk = bu = bv = ax = ay = az = 0.0
+    bw1x = bw1y = bw1z = bt1 = bw2x = bw2y = bw2z = bt2 = bw3x = bw3y = bw3z = bt3 = 0.0
+    bf1 = bf2 = bf3 = bpw1 = bpw2 = bqw2 = bpu = bpv = 0.0
+    lx = ly = lz = 0.0
     for h in range(ray.shape[0]):
         p = prim[h]
-        ph = photon[p]
-        K = kk[p]
-        r = ray[h]
-        # ---- the photon's own record (photon_record): segment k is tracer index K - k.
-        j = K - 1
-        w1x, w1y, w1z, t1 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
-        if K >= 2:
-            j = K - 2
-            w2x, w2y, w2z, t2 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
-        else:
-            w2x, w2y, w2z, t2 = nan, nan, nan, nan
-        if K >= 3:
-            j = K - 3
-            w3x, w3y, w3z, t3 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
-        else:
-            w3x, w3y, w3z, t3 = nan, nan, nan, nan
-        kind = ptab[ph, 0]
-        pk = ptab[ph, 1]
-        u = ptab[ph, 2]
-        v = ptab[ph, 3]
-        ax, ay, az = ptab[ph, 4], ptab[ph, 5], ptab[ph, 6]
-        px, py, pz = ray_d[r, 0], ray_d[r, 1], ray_d[r, 2]
+        if p != last:
+            # ---- the photon's own record (photon_record): segment k is tracer index K - k.
+            last = p
+            ph = photon[p]
+            K = kk[p]
+            j = K - 1
+            bw1x, bw1y, bw1z, bt1 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
+            if K >= 2:
+                j = K - 2
+                bw2x, bw2y, bw2z, bt2 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
+            else:
+                bw2x, bw2y, bw2z, bt2 = nan, nan, nan, nan
+            if K >= 3:
+                j = K - 3
+                bw3x, bw3y, bw3z, bt3 = w[ph, j, 0], w[ph, j, 1], w[ph, j, 2], t[ph, j]
+            else:
+                bw3x, bw3y, bw3z, bt3 = nan, nan, nan, nan
+            lx, ly, lz = x[ph, K - 1, 0], x[ph, K - 1, 1], x[ph, K - 1, 2]
+            kind = ptab[ph, 0]
+            pk = ptab[ph, 1]
+            bu = ptab[ph, 2]
+            bv = ptab[ph, 3]
+            ax, ay, az = ptab[ph, 4], ptab[ph, 5], ptab[ph, 6]
+            # ---- its pdfs (Pdfs)
+            bf1 = st * np.exp(-st * bt1)
+            bf2 = st * np.exp(-st * bt2)
+            bf3 = st * np.exp(-st * bt3)
+            if K == 1:
+                bpw1 = _emission(kind, _dot(ax, ay, az, bw1x, bw1y, bw1z))
+            else:
+                bpw1 = _phase(_dot(bw2x, bw2y, bw2z, bw1x, bw1y, bw1z), g, hg_a, hg_c)
+            if K == 2:
+                bpw2 = _emission(kind, _dot(ax, ay, az, bw2x, bw2y, bw2z))
+            else:
+                bpw2 = _phase(_dot(bw3x, bw3y, bw3z, bw2x, bw2y, bw2z), g, hg_a, hg_c)
+            bqw2 = (bf3 if K >= 3 else 1.0) * bpw2  # surface_common.q_to_w2
+            bpu = 2.0 * pk * (1.0 - bu) if kind == _MESH else 1.0
+            bpv = 2.0 * pk * (1.0 - bv) if kind == _MESH else 1.0
+            # ---- Technique.can_produce of every member
+            ik = np.int64(kind)
+            for jm in range(nm):
+                ok[jm] = (K >= mem[jm, 2] and (mem[jm, 3] < 0 or K <= mem[jm, 3])
+                          and ((mem[jm, 4] >> ik) & 1) == 1)
         # ---- reconstruct: the hit's integrated dimensions replace the photon's.
+        w1x, w1y, w1z, t1 = bw1x, bw1y, bw1z, bt1
+        w2x, w2y, w2z, t2 = bw2x, bw2y, bw2z, bt2
+        w3x, w3y, w3z, t3 = bw3x, bw3y, bw3z, bt3
+        u, v = bu, bv
+        px, py, pz = ray_d[ray[h], 0], ray_d[ray[h], 1], ray_d[ray[h], 2]
         if code == _PLANE:
             t2 = r0[h]
             t1 = r1[h]
@@ -265,10 +327,11 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
             w1x, w1y, w1z = wv[h, 0], wv[h, 1], wv[h, 2]
         elif code == _SS_SPHERE or code == _SS_CONE or code == _SS_DISK:
             # w1* = normalize(x0 - x1), x1 = the light point (K = 1), x0 = o + s psi.
+            r = ray[h]
             sh = s[h]
-            dx = (ray_o[r, 0] + sh * px) - x[ph, K - 1, 0]
-            dy = (ray_o[r, 1] + sh * py) - x[ph, K - 1, 1]
-            dz = (ray_o[r, 2] + sh * pz) - x[ph, K - 1, 2]
+            dx = (ray_o[r, 0] + sh * px) - lx
+            dy = (ray_o[r, 1] + sh * py) - ly
+            dz = (ray_o[r, 2] + sh * pz) - lz
             nl = np.sqrt(dx * dx + dy * dy + dz * dz)
             dv = nl if nl > 0.0 else 1.0
             w1x, w1y, w1z = dx / dv, dy / dv, dz / dv
@@ -283,119 +346,111 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
         elif code == _SS_VT:
             v = r0[h]
             t1 = r1[h]
-        # ---- Pdfs
-        f1 = st * np.exp(-st * t1)
-        f2 = st * np.exp(-st * t2)
-        f3 = st * np.exp(-st * t3)
-        if K == 1:
-            pw1 = _emission(kind, _dot(ax, ay, az, w1x, w1y, w1z))
-        else:
-            pw1 = _phase(_dot(w2x, w2y, w2z, w1x, w1y, w1z), g, hg_a, hg_c)
-        if K == 2:
-            pw2 = _emission(kind, _dot(ax, ay, az, w2x, w2y, w2z))
-        else:
-            pw2 = _phase(_dot(w3x, w3y, w3z, w2x, w2y, w2z), g, hg_a, hg_c)
+        # ---- the pdfs that changed
+        f1 = st * np.exp(-st * t1) if set_t1 else bf1
+        f2 = st * np.exp(-st * t2) if set_t2 else bf2
+        f3 = bf3
+        qw2 = bqw2
+        if set_t3:
+            f3 = st * np.exp(-st * t3)
+            qw2 = (f3 if K >= 3 else 1.0) * bpw2
+        pw1 = bpw1
+        if set_w1:
+            if K == 1:
+                pw1 = _emission(kind, _dot(ax, ay, az, w1x, w1y, w1z))
+            else:
+                pw1 = _phase(_dot(w2x, w2y, w2z, w1x, w1y, w1z), g, hg_a, hg_c)
+        pw2 = bpw2
         pc1 = _TWO_PI * pw1
-        mesh = kind == _MESH
-        puv = 2.0 * pk if mesh else 1.0
-        pu = 2.0 * pk * (1.0 - u) if mesh else 1.0
-        pv = 2.0 * pk * (1.0 - v) if mesh else 1.0
-        qw2 = (f3 if K >= 3 else 1.0) * pw2  # surface_common.q_to_w2
-        ik = np.int64(kind)
-        # ---- each member's density on this record
+        pu, pv = bpu, bpv
+        if set_uv and kind == _MESH:
+            pu = 2.0 * pk * (1.0 - u)
+            pv = 2.0 * pk * (1.0 - v)
+        puv = 2.0 * pk if kind == _MESH else 1.0
+        # ---- short factors (Q_short = Q_long E(integrated t)), applied last as density does
+        if s_t1:
+            e1 = np.exp(-st * t1)
+            sf[_CONE] = sf[_SS_CONE] = sf[_SS_DISK] = sf[_SS_UT] = sf[_SS_VT] = e1
+        if s_t2:
+            sf[_CYL] = np.exp(-st * t2)
+        if s_12:
+            sf[_PLANE] = np.exp(-st * (t1 + t2))
+        if s_13:
+            sf[_GP13] = np.exp(-st * (t1 + t3))
+        if s_23:
+            sf[_GP23] = np.exp(-st * (t2 + t3))
+        # ---- long densities (each technique's ``density``, same operation order)
+        if h_pl:
+            nx = w1y * w2z - w1z * w2y
+            ny = w1z * w2x - w1x * w2z
+            nz = w1x * w2y - w1y * w2x
+            q = (f3 if K >= 3 else 1.0) * pw2 * pw1
+            qt[_PLANE] = q * abs(_dot(nx, ny, nz, px, py, pz))
+        if h_13:
+            nx = w1y * w3z - w1z * w3y
+            ny = w1z * w3x - w1x * w3z
+            nz = w1x * w3y - w1y * w3x
+            qt[_GP13] = f2 * pw2 * pw1 * abs(_dot(nx, ny, nz, px, py, pz))
+        if h_23:
+            nx = w2y * w3z - w2z * w3y
+            ny = w2z * w3x - w2x * w3z
+            nz = w2x * w3y - w2y * w3x
+            qt[_GP23] = f1 * pw2 * pw1 * abs(_dot(nx, ny, nz, px, py, pz))
+        if h_co or h_cy:
+            c = _dot(w1x, w1y, w1z, w2x, w2y, w2z)
+            if h_co:
+                nx = t1 * (w2x - c * w1x)
+                ny = t1 * (w2y - c * w1y)
+                nz = t1 * (w2z - c * w1z)
+                qt[_CONE] = qw2 * f2 * pc1 * abs(_dot(nx, ny, nz, px, py, pz))
+            if h_cy:
+                nx = t1 * (c * w2x - w1x)
+                ny = t1 * (c * w2y - w1y)
+                nz = t1 * (c * w2z - w1z)
+                qt[_CYL] = qw2 * pc1 * f1 * abs(_dot(nx, ny, nz, px, py, pz))
+        if h_ss:
+            tt = t1 * t1
+            qt[_SS_SPHERE] = puv * f1 * abs(_dot(tt * w1x, tt * w1y, tt * w1z, px, py, pz))
+        if h_sc:
+            c = _dot(w1x, w1y, w1z, ax, ay, az)
+            nx = t1 * (ax - c * w1x)
+            ny = t1 * (ay - c * w1y)
+            nz = t1 * (az - c * w1z)
+            qt[_SS_CONE] = puv * pc1 * abs(_dot(nx, ny, nz, px, py, pz))
+        if h_sd:
+            nx = w1y * az - w1z * ay
+            ny = w1z * ax - w1x * az
+            nz = w1x * ay - w1y * ax
+            sin2 = _dot(nx, ny, nz, nx, ny, nz)
+            kf = t1 / max(sin2, 1e-200) if sin2 > 1e-200 else 0.0
+            qt[_SS_DISK] = puv * _INV_2PI * abs(_dot(kf * nx, kf * ny, kf * nz, px, py, pz))
+        if h_uv or h_ut or h_vt:
+            eux, euy, euz = ptab[ph, 7], ptab[ph, 8], ptab[ph, 9]
+            evx, evy, evz = ptab[ph, 10], ptab[ph, 11], ptab[ph, 12]
+            if h_uv:
+                nx = euy * evz - euz * evy
+                ny = euz * evx - eux * evz
+                nz = eux * evy - euy * evx
+                q = (0.5 * puv if kind == _MESH else 1.0) * pw1
+                qt[_SS_UV] = q * abs(_dot(nx, ny, nz, px, py, pz)) * f1
+            if h_ut:
+                nx = euy * w1z - euz * w1y
+                ny = euz * w1x - eux * w1z
+                nz = eux * w1y - euy * w1x
+                qt[_SS_UT] = pv * pw1 * abs(_dot(nx, ny, nz, px, py, pz))
+            if h_vt:
+                nx = evy * w1z - evz * w1y
+                ny = evz * w1x - evx * w1z
+                nz = evx * w1y - evy * w1x
+                qt[_SS_VT] = pu * pw1 * abs(_dot(nx, ny, nz, px, py, pz))
+        # ---- the heuristic over the members that can produce the path (member_densities:
+        # nan_to_num(abs(Q)) with NaN and inf -> 0)
         den = 0.0
         for jm in range(nm):
-            mc = mem[jm, 0]
-            short = mem[jm, 1] != 0
-            ok = K >= mem[jm, 2] and (mem[jm, 3] < 0 or K <= mem[jm, 3])
-            ok = ok and ((mem[jm, 4] >> ik) & 1) == 1
             q = 0.0
-            if ok:
-                if mc == _PLANE:
-                    nx = w1y * w2z - w1z * w2y
-                    ny = w1z * w2x - w1x * w2z
-                    nz = w1x * w2y - w1y * w2x
-                    q = (f3 if K >= 3 else 1.0) * pw2 * pw1
-                    q = q * abs(_dot(nx, ny, nz, px, py, pz))
-                    if short:
-                        q = q * np.exp(-st * (t1 + t2))
-                elif mc == _GP13 or mc == _GP23:
-                    if mc == _GP13:
-                        nx = w1y * w3z - w1z * w3y
-                        ny = w1z * w3x - w1x * w3z
-                        nz = w1x * w3y - w1y * w3x
-                        other = f2
-                        ta = t1
-                    else:
-                        nx = w2y * w3z - w2z * w3y
-                        ny = w2z * w3x - w2x * w3z
-                        nz = w2x * w3y - w2y * w3x
-                        other = f1
-                        ta = t2
-                    q = other * pw2 * pw1 * abs(_dot(nx, ny, nz, px, py, pz))
-                    if short:
-                        q = q * np.exp(-st * (ta + t3))
-                elif mc == _CONE:
-                    c = _dot(w1x, w1y, w1z, w2x, w2y, w2z)
-                    nx = t1 * (w2x - c * w1x)
-                    ny = t1 * (w2y - c * w1y)
-                    nz = t1 * (w2z - c * w1z)
-                    q = qw2 * f2 * pc1 * abs(_dot(nx, ny, nz, px, py, pz))
-                    if short:
-                        q = q * np.exp(-st * t1)
-                elif mc == _CYL:
-                    c = _dot(w1x, w1y, w1z, w2x, w2y, w2z)
-                    nx = t1 * (c * w2x - w1x)
-                    ny = t1 * (c * w2y - w1y)
-                    nz = t1 * (c * w2z - w1z)
-                    q = qw2 * pc1 * f1 * abs(_dot(nx, ny, nz, px, py, pz))
-                    if short:
-                        q = q * np.exp(-st * t2)
-                elif mc == _SS_SPHERE:
-                    tt = t1 * t1
-                    q = puv * f1 * abs(_dot(tt * w1x, tt * w1y, tt * w1z, px, py, pz))
-                elif mc == _SS_CONE:
-                    c = _dot(w1x, w1y, w1z, ax, ay, az)
-                    nx = t1 * (ax - c * w1x)
-                    ny = t1 * (ay - c * w1y)
-                    nz = t1 * (az - c * w1z)
-                    q = puv * pc1 * abs(_dot(nx, ny, nz, px, py, pz))
-                    if short:
-                        q = q * np.exp(-st * t1)
-                elif mc == _SS_DISK:
-                    nx = w1y * az - w1z * ay
-                    ny = w1z * ax - w1x * az
-                    nz = w1x * ay - w1y * ax
-                    sin2 = _dot(nx, ny, nz, nx, ny, nz)
-                    kf = t1 / max(sin2, 1e-200) if sin2 > 1e-200 else 0.0
-                    q = puv * _INV_2PI * abs(_dot(kf * nx, kf * ny, kf * nz, px, py, pz))
-                    if short:
-                        q = q * np.exp(-st * t1)
-                else:  # the single-scattering planes
-                    eux, euy, euz = ptab[ph, 7], ptab[ph, 8], ptab[ph, 9]
-                    evx, evy, evz = ptab[ph, 10], ptab[ph, 11], ptab[ph, 12]
-                    if mc == _SS_UV:
-                        nx = euy * evz - euz * evy
-                        ny = euz * evx - eux * evz
-                        nz = eux * evy - euy * evx
-                        pos = 0.5 * puv if mesh else 1.0
-                    elif mc == _SS_UT:
-                        nx = euy * w1z - euz * w1y
-                        ny = euz * w1x - eux * w1z
-                        nz = eux * w1y - euy * w1x
-                        pos = pv
-                    else:
-                        nx = evy * w1z - evz * w1y
-                        ny = evz * w1x - evx * w1z
-                        nz = evx * w1y - evy * w1x
-                        pos = pu
-                    q = pos * pw1
-                    q = q * abs(_dot(nx, ny, nz, px, py, pz))
-                    if mc == _SS_UV:
-                        q = q * f1
-                    elif short:
-                        q = q * np.exp(-st * t1)
-                # member_densities: nan_to_num(abs(q), nan=0, posinf=0)
+            if ok[jm]:
+                mc = mem[jm, 0]
+                q = qt[mc] * sf[mc] if mem[jm, 1] != 0 else qt[mc]
                 q = abs(q)
                 if not (q < np.inf):
                     q = 0.0
