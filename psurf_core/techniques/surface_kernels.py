@@ -66,19 +66,23 @@ def _roots(a, h, c):  # pragma: no cover - compiled
     """``surface_common.quadratic_roots`` of one pair: both roots of ``a x^2 + 2 h x + c``,
     NaN where missing (``a = 0`` leaves the linear root in the second slot)."""
     disc = h * h - a * c
-    q = -(h + math.copysign(np.sqrt(max(disc, 0.0)), h))
+    if not disc >= 0.0:  # a miss (most candidate pairs): no square root, no divisions
+        return np.nan, np.nan
+    q = -(h + math.copysign(np.sqrt(disc), h))
     r0 = q / a
     r1 = c / q
-    if not (disc >= 0.0 and np.isfinite(r0)):
+    if not np.isfinite(r0):
         r0 = np.nan
-    if not (disc >= 0.0 and np.isfinite(r1)):
+    if not np.isfinite(r1):
         r1 = np.nan
     return r0, r1
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _camera_vertex(mu, s, s_min, med):  # pragma: no cover - compiled
-    """``surface_common.camera_vertex``: ``ss rho(mu) E(s)``, ``mu = -w1 . psi``."""
+def _camera_vertex(mu, s, s_min, extra, med):  # pragma: no cover - compiled
+    """``surface_common.camera_vertex`` times ``E(extra)``: ``ss rho(mu) E(s - s_min + extra)``,
+    ``mu = -w1 . psi``. The long variants' transmittance along the photon joins the camera's
+    in one ``exp`` (a sixth of a hit's cost; equal to the stage path's product to ~1e-15)."""
     g = med[2]
     if g == 0.0:
         rho0 = INV_4PI
@@ -89,7 +93,7 @@ def _camera_vertex(mu, s, s_min, med):  # pragma: no cover - compiled
         else:
             den = (1.0 + g) ** 2 - 2.0 * g * (1.0 + mu)
         rho0 = INV_4PI * ((1.0 - g) * (1.0 + g)) / (den * np.sqrt(den))
-    return med[1] * rho0 * np.exp(-med[0] * (s - s_min))
+    return med[1] * rho0 * np.exp(-med[0] * ((s - s_min) + extra))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -135,7 +139,6 @@ def _cone_kernel(spans, width, order, pix, rt, pt, med, blk, short,
     o_w, o_val, o_st = np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3), np.int8)
     n = 0
     n_defer = 0
-    sig_t = med[0]
     for i in range(spans.shape[0]):
         p = spans[i, 0]
         a0, a1, a2 = pt[p, 0], pt[p, 1], pt[p, 2]  # apex x1
@@ -183,9 +186,7 @@ def _cone_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                         scal = 0.0
                     else:
                         scal = _camera_vertex(-_dot3(e0, e1, e2, q0, q1, q2), s, rt[r, 6],
-                                              med) / _TWO_PI
-                        if not short:
-                            scal = scal * np.exp(-sig_t * t1)
+                                              0.0 if short else t1, med) / _TWO_PI
                         scal = scal / ndp
                     n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 8, st0,
                                      _CLEAR, _CLEAR)
@@ -209,7 +210,6 @@ def _cylinder_kernel(spans, width, order, pix, rt, pt, med, blk, short,
     o_w, o_val, o_st = np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3), np.int8)
     n = 0
     n_defer = 0
-    sig_t = med[0]
     for i in range(spans.shape[0]):
         p = spans[i, 0]
         a0, a1, a2 = pt[p, 0], pt[p, 1], pt[p, 2]  # x2
@@ -270,9 +270,7 @@ def _cylinder_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                         scal = 0.0
                     else:
                         scal = _camera_vertex(-_dot3(m0, m1, m2, q0, q1, q2), s, rt[r, 6],
-                                              med) / _TWO_PI
-                        if not short:
-                            scal = scal * np.exp(-sig_t * t2)
+                                              0.0 if short else t2, med) / _TWO_PI
                         scal = scal / ndp
                     n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 11, st0,
                                      st1, _CLEAR)
@@ -357,9 +355,7 @@ def _gplane_kernel(spans, width, order, pix, rt, pt, med, blk, short, t1t3,
                     scal = 0.0
                 else:
                     mu = -_dot3(pt[p, 15], pt[p, 16], pt[p, 17], q0, q1, q2)
-                    scal = sig_t * _camera_vertex(mu, s, rt[r, 6], med)
-                    if not short:
-                        scal = scal * np.exp(-sig_t * (t3 + tv))
+                    scal = sig_t * _camera_vertex(mu, s, rt[r, 6], 0.0 if short else t3 + tv, med)
                     scal = scal / ndp
                 n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 22, st0, st1,
                                  st2)
