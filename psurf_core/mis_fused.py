@@ -24,15 +24,12 @@ The kernel is single-threaded and compiled once per clone (``cache=True``).
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 from numba import njit
 
 from .compiled import ctrl_c_kept
-from .path_record import KIND_CODE
+from .path_record import KIND_CODE, photon_table
 from .sampling import INV_4PI
-from .scene import AreaLight, MeshLight
 from .techniques.cones import PhotonCone
 from .techniques.cylinders import PhotonCylinder
 from .techniques.generalized_planes import GeneralizedPlane
@@ -96,41 +93,6 @@ def member_table(group) -> np.ndarray | None:
         rows.append((code, int(bool(m.short)), int(m.min_k),
                      -1 if m.max_k is None else int(m.max_k), mask))
     return np.array(rows, dtype=np.int64).reshape(-1, 5)
-
-
-# ------------------------------------------------------------------------- per photon
-_PHOTON_CACHE: list = []  # [(weakref to paths, scene, table)]: the last paths seen
-
-
-def photon_table(paths, scene) -> np.ndarray:
-    """(P, 13) float per photon: light kind code, triangle pmf ``P_k`` (0 unless a mesh
-    light's triangle), ``uv`` (2), light ``axis`` (3), patch edges ``eu``, ``ev`` (3 + 3)
-    (the per-light fields of :func:`~psurf_core.path_record.photon_record` and ``Pdfs``).
-
-    Kept for the last ``paths`` seen: every chunk of every technique of a batch reads the
-    same photons.
-    """
-    if _PHOTON_CACHE:
-        ref, sc, tab = _PHOTON_CACHE[0]
-        if ref() is paths and sc is scene:
-            return tab
-    p = len(paths)
-    tab = np.zeros((p, 13))
-    tab[:, 2:4] = paths.light_uv
-    tab[:, 4:7] = paths.light_normal
-    for li, lt in enumerate(scene.lights):
-        sel = np.flatnonzero(paths.light == li)
-        tab[sel, 0] = KIND_CODE[lt.kind]
-        if isinstance(lt, AreaLight):
-            tab[sel, 7:10], tab[sel, 10:13] = lt.edge_u, lt.edge_v
-        elif isinstance(lt, MeshLight):
-            tri = paths.tri[sel]
-            tr = lt.triangles[tri]
-            tab[sel, 7:10], tab[sel, 10:13] = tr[:, 1] - tr[:, 0], tr[:, 2] - tr[:, 0]
-            ok = tri >= 0
-            tab[sel[ok], 1] = lt.areas[tri[ok]] / lt.area
-    _PHOTON_CACHE[:] = [(weakref.ref(paths), scene, tab)]
-    return tab
 
 
 # ------------------------------------------------------------------------- entry point
