@@ -27,7 +27,7 @@ import numpy as np
 
 from . import sampling
 from .compiled import ctrl_c_kept
-from .constants import HG_ISOTROPIC_G, MAX_TRACE_DEPTH, ROULETTE_START
+from .constants import HG_ISOTROPIC_G, MAX_TRACE_DEPTH, ROULETTE_START, SHADOW_EPS
 from .geometry import Blockers, blockers_of
 from .scene import AreaLight, MeshLight, PointLight, Scene
 
@@ -227,12 +227,14 @@ def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
     # Which segments Blockers.occluded must see: those whose box meets a blocker's box (its
     # own first reject, repeated in the step kernel), every one when it has no boxes, none
     # when nothing blocks. It then sees the rows it would have picked itself, in order.
-    if blockers.empty:
-        bounds, test_all = np.zeros((0, 2, 3)), False
-    elif blockers.bounds is None or blockers.planes is None:
-        bounds, test_all = np.zeros((0, 2, 3)), True
-    else:
-        bounds, test_all = np.ascontiguousarray(blockers.bounds, dtype=float), False
+    # It is skipped when it provably finds nothing (tk.step's `unsure`).
+    bounds, planes, test_all = np.zeros((0, 2, 3)), np.zeros((0, 4)), False
+    if not blockers.empty:
+        if blockers.bounds is None or blockers.planes is None:
+            test_all = True
+        else:
+            bounds = np.ascontiguousarray(blockers.bounds, dtype=float)
+            planes = np.ascontiguousarray(blockers.planes, dtype=float)
     depth = trace_depth(scene) if max_depth is None else int(max_depth)
     e = emit(scene, rng, n_photons)
     n = n_photons
@@ -279,12 +281,17 @@ def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
             rec_idx = np.concatenate([rec_idx[:off], np.empty(grow - off, dtype=np.int64)])
             rec = np.concatenate([rec[:off], np.empty((grow - off, tk.REC_COLS))])
         ok = np.zeros(n, dtype=bool)
-        nn = tk.step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, lg, st, bmin, bmax,
-                     oks[-1], ok, test_all, bounds, _BOUNDS_PAD, rec_idx, rec, off, near_pos,
-                     near_a, near_b, near_inb)
+        nn, unsure = tk.step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, lg, st,
+                             bmin, bmax, oks[-1], ok, test_all, bounds, planes, _BOUNDS_PAD,
+                             0.5 * SHADOW_EPS, rec_idx, rec, off, near_pos, near_a, near_b,
+                             near_inb)
         if nn:
-            occ = blockers.occluded(near_a[:nn], near_b[:nn])
-            ok[near_pos[:nn]] = near_inb[:nn] & ~occ
+            # The exact test on exactly the rows it would have taken (its dot products are
+            # BLAS's, whose rounding depends on the array), unless it provably finds nothing.
+            if unsure:
+                ok[near_pos[:nn]] = near_inb[:nn] & ~blockers.occluded(near_a[:nn], near_b[:nn])
+            else:
+                ok[near_pos[:nn]] = near_inb[:nn]
         rec_off.append(off + m)
         oks.append(ok)
         if m == 0:

@@ -49,6 +49,39 @@ def _direction_about(a0, a1, a2, ct, cphi, sphi):  # pragma: no cover - compiled
             p * b12 + q * b22 + ct * a2)
 
 
+#: Unit roundoff of float64.
+_U = 2.0**-53
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _misses_plane(a0, a1, a2, b0, b1, b2, plane, half_eps):  # pragma: no cover - compiled
+    """True only if ``geometry._crosses_plane(a, b, plane)`` is false for segment ``a -> b``
+    however its dot products are rounded (BLAS sums in its own order, maybe with fused
+    multiply-adds, so its bits cannot be reproduced here; they are bounded instead).
+
+    ``_crosses_plane`` needs ``da db <= 0`` and ``t = da / (da - db) |b - a| >= half_eps``
+    with ``da = a . n - c``, ``db = b . n - c``. Any rounding of those three-term dot products
+    is within ``4 u S`` of the exact value (``S = sum |a_i n_i| + |c|``, ``u = 2^-53``); the
+    bound used is ``16 u S``, for this computation's error too. Proven false when ``da`` and
+    ``db`` have the same strict sign in every case (with no underflow of the product), or when
+    ``|t| < half_eps / 2`` in every case (a segment leaving the blocker's plane: the light
+    points of an area light). Otherwise false is returned (undecided).
+    """
+    n0, n1, n2, c = plane[0], plane[1], plane[2], plane[3]
+    da = a0 * n0 + a1 * n1 + a2 * n2 - c
+    db = b0 * n0 + b1 * n1 + b2 * n2 - c
+    ea = 16.0 * _U * (abs(a0 * n0) + abs(a1 * n1) + abs(a2 * n2) + abs(c)) + 1e-300
+    eb = 16.0 * _U * (abs(b0 * n0) + abs(b1 * n1) + abs(b2 * n2) + abs(c)) + 1e-300
+    tiny = 1e-150  # |da|, |db| above it: their product cannot underflow to 0
+    if (da - ea > tiny and db - eb > tiny) or (da + ea < -tiny and db + eb < -tiny):
+        return True
+    gap = abs(da - db) - (ea + eb)  # lower bound of |da - db|
+    if not gap > 0.0:
+        return False
+    ln = np.sqrt((b0 - a0) ** 2 + (b1 - a1) ** 2 + (b2 - a2) ** 2) * (1.0 + 1e-12) + 1e-300
+    return (abs(da) + ea) * ln <= 0.5 * half_eps * gap
+
+
 @njit(cache=True, error_model="numpy")
 def select(m, idx, x, w, beta, ok_look, u, q, albedo):  # pragma: no cover - compiled
     """Keep, in place and in order, the first ``m`` photons of the state that a technique can
@@ -98,7 +131,7 @@ def select(m, idx, x, w, beta, ok_look, u, q, albedo):  # pragma: no cover - com
 
 @njit(cache=True, error_model="numpy")
 def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigma_t,
-         bmin, bmax, ok_prev, ok_cur, test_all, bounds, pad,
+         bmin, bmax, ok_prev, ok_cur, test_all, bounds, planes, pad, half_eps,
          rec_idx, rec, off, near_pos, near_a, near_b, near_inb):  # pragma: no cover - compiled
     """Sample segment ``j`` of the ``m`` active photons and record it.
 
@@ -109,7 +142,9 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
     is inside the box and the segment unoccluded. Segments that may be occluded (their box
     meets a blocker's padded box, the first reject of ``Blockers.occluded``; every one when
     ``test_all``) are listed in ``near_*`` for the caller's exact test and their ``ok_cur`` is
-    left for it to write.
+    left for it to write. ``unsure`` is false when that test cannot find anything: every
+    listed segment provably misses the plane of each planar blocker whose box it meets
+    (:func:`_misses_plane`; a segment leaving an emitter); the caller then skips it.
 
     Parameters
     ----------
@@ -139,8 +174,12 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
         Blockers without boxes: list every segment that passes ``ok_prev``.
     bounds : (B, 2, 3) float
         Blockers' boxes (empty: nothing can occlude).
+    planes : (B, 4) float
+        ``(n, n . p)`` of a planar blocker, NaN otherwise (``Blockers.planes``).
     pad : float
         Padding of those boxes (``geometry._BOUNDS_PAD``).
+    half_eps : float
+        ``SHADOW_EPS / 2``, the end margin of ``geometry._crosses_plane``.
     rec_idx : (R,) int64
     rec : (R, REC_COLS) float
         Record buffers, written at rows ``off .. off + m - 1``.
@@ -152,10 +191,13 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
 
     Returns
     -------
-    int
+    nn : int
         Segments listed in ``near_*``.
+    unsure : bool
+        Whether ``Blockers.occluded`` must run on them.
     """
     nb = bounds.shape[0]
+    unsure = False
     lo_in0, lo_in1, lo_in2 = bmin[0] - _INSIDE_EPS, bmin[1] - _INSIDE_EPS, bmin[2] - _INSIDE_EPS
     hi_in0, hi_in1, hi_in2 = bmax[0] + _INSIDE_EPS, bmax[1] + _INSIDE_EPS, bmax[2] + _INSIDE_EPS
     nn = 0
@@ -207,7 +249,8 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
             continue
         inb = (lo_in0 <= b0 <= hi_in0) and (lo_in1 <= b1 <= hi_in1) and (lo_in2 <= b2 <= hi_in2)
         near = test_all
-        if not near and nb > 0:
+        unsure = unsure or test_all
+        if nb > 0:
             l0, h0 = min(a0, b0), max(a0, b0)
             l1, h1 = min(a1, b1), max(a1, b1)
             l2, h2 = min(a2, b2), max(a2, b2)
@@ -216,7 +259,11 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
                         and l1 <= bounds[k, 1, 1] + pad and h1 >= bounds[k, 0, 1] - pad
                         and l2 <= bounds[k, 1, 2] + pad and h2 >= bounds[k, 0, 2] - pad):
                     near = True
-                    break
+                    if unsure:
+                        break
+                    if np.isnan(planes[k, 0]) or not _misses_plane(a0, a1, a2, b0, b1, b2,
+                                                                   planes[k], half_eps):
+                        unsure = True
         if near:
             near_pos[nn] = p
             near_a[nn, 0], near_a[nn, 1], near_a[nn, 2] = a0, a1, a2
@@ -225,7 +272,7 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
             nn += 1
         else:
             ok_cur[p] = inb
-    return nn
+    return nn, unsure
 
 
 @njit(cache=True, error_model="numpy")
