@@ -240,11 +240,11 @@ def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
     n = n_photons
 
     # State of the active photons, compacted in place (rows 0..m-1, in photon order):
-    # photon index, current vertex, direction of the next segment, weight.
+    # photon index, current vertex, direction of the next segment (the weights follow from
+    # the roulette survivals `qs`: tk.assemble).
     idx = np.arange(n)
     x = e["x0"].copy()
     w = e["w1"].copy()
-    beta = e["beta"].copy()
     m = n
     oks = [np.ones(n, dtype=bool)]  # prefix_ok per vertex, (N,) each
     # Step records, step-major (step j: rows rec_off[j-1] .. rec_off[j] - 1); grown by
@@ -253,6 +253,7 @@ def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
     rec_idx = np.empty(cap, dtype=np.int64)
     rec = np.empty((cap, tk.REC_COLS))
     rec_off = [0]
+    qs = [1.0]  # roulette survival before each segment, for tk.assemble
     near_pos = np.empty(n, dtype=np.int64)
     near_a, near_b = np.empty((n, 3)), np.empty((n, 3))
     near_inb = np.empty(n, dtype=bool)
@@ -263,8 +264,9 @@ def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
         scatter = j > 1
         if scatter:
             q = roulette_survival(scene, j - 1)
+            qs.append(q)
             u = rng.random(m) if q < 1.0 else empty
-            m = tk.select(m, idx, x, w, beta, oks[max(j - LOOKBACK, 0)], u, q, albedo)
+            m = tk.select(m, idx, x, w, oks[max(j - LOOKBACK, 0)], u, q)
             # The draws of sample_phase (cosine, azimuth), then sample_free_flight: one call,
             # the same stream as three.
             r = rng.random(3 * m)
@@ -281,7 +283,7 @@ def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
             rec_idx = np.concatenate([rec_idx[:off], np.empty(grow - off, dtype=np.int64)])
             rec = np.concatenate([rec[:off], np.empty((grow - off, tk.REC_COLS))])
         ok = np.zeros(n, dtype=bool)
-        nn, unsure = tk.step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, lg, st,
+        nn, unsure = tk.step(m, idx, x, w, scatter, hg, g, u_mu, cphi, sphi, lg, st,
                              bmin, bmax, oks[-1], ok, test_all, bounds, planes, _BOUNDS_PAD,
                              0.5 * SHADOW_EPS, rec_idx, rec, off, near_pos, near_a, near_b,
                              near_inb)
@@ -302,8 +304,8 @@ def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
     ws, betas = np.empty((n, d, 3)), np.empty((n, d, 3))
     ts, alives, clips = np.empty((n, d)), np.empty((n, d), dtype=bool), np.empty((n, d, 2))
     prefix_ok = np.empty((n, d + 1), dtype=bool)
-    tk.assemble(e["x0"], np.stack(oks), rec_idx, rec, np.array(rec_off, dtype=np.int64), xs,
-                ws, ts, betas, alives, clips, prefix_ok)
+    tk.assemble(e["x0"], e["beta"], np.array(qs), albedo, np.stack(oks), rec_idx, rec,
+                np.array(rec_off, dtype=np.int64), xs, ws, ts, betas, alives, clips, prefix_ok)
 
     return PhotonPaths(
         n_emitted=n,

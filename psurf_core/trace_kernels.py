@@ -19,8 +19,9 @@ from numba import njit
 
 from .constants import PARALLEL_EPS
 
-#: Columns of a step record (one row per sampled segment): ``t, w(3), beta(3), x(3), clip(2)``.
-REC_T, REC_W, REC_BETA, REC_X, REC_CLIP, REC_COLS = 0, 1, 4, 7, 10, 12
+#: Columns of a step record (one row per sampled segment): ``t, w(3), clip(2)``. The vertex and
+#: the weight are not stored: :func:`assemble` recomputes them with the same operations.
+REC_T, REC_W, REC_CLIP, REC_COLS = 0, 1, 4, 6
 
 #: Slack (scene units) of ``geometry.inside_box``.
 _INSIDE_EPS = 1e-9
@@ -83,10 +84,10 @@ def _misses_plane(a0, a1, a2, b0, b1, b2, plane, half_eps):  # pragma: no cover 
 
 
 @njit(cache=True, error_model="numpy")
-def select(m, idx, x, w, beta, ok_look, u, q, albedo):  # pragma: no cover - compiled
+def select(m, idx, x, w, ok_look, u, q):  # pragma: no cover - compiled
     """Keep, in place and in order, the first ``m`` photons of the state that a technique can
-    still use (``ok_look[idx]``) and that survive roulette (``u < q``; no draw when ``q >= 1``),
-    scaling their weight by ``albedo / q`` (``beta / q * albedo``, as numpy did it).
+    still use (``ok_look[idx]``) and that survive roulette (``u < q``; no draw when ``q >= 1``).
+    Their weights are not carried: :func:`assemble` recomputes them.
 
     Parameters
     ----------
@@ -94,16 +95,14 @@ def select(m, idx, x, w, beta, ok_look, u, q, albedo):  # pragma: no cover - com
         Active photons (the first ``m`` rows of the state).
     idx : (P,) int64
         Photon index of each state row.
-    x, w, beta : (P, 3) float
-        Current vertex, direction and weight of each state row.
+    x, w : (P, 3) float
+        Current vertex and direction of each state row.
     ok_look : (N,) bool
         ``prefix_ok`` at the deepest vertex a technique looks back to, per photon.
     u : (m,) float
         Roulette variates (ignored, may be empty, when ``q >= 1``).
     q : float
         Survival probability.
-    albedo : float
-        ``sigma_s / sigma_t``.
 
     Returns
     -------
@@ -121,23 +120,19 @@ def select(m, idx, x, w, beta, ok_look, u, q, albedo):  # pragma: no cover - com
         for c in range(3):
             x[k, c] = x[i, c]
             w[k, c] = w[i, c]
-            b = beta[i, c]
-            if roulette:
-                b = b / q
-            beta[k, c] = b * albedo
         k += 1
     return k
 
 
 @njit(cache=True, error_model="numpy")
-def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigma_t,
+def step(m, idx, x, w, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigma_t,
          bmin, bmax, ok_prev, ok_cur, test_all, bounds, planes, pad, half_eps,
          rec_idx, rec, off, near_pos, near_a, near_b, near_inb):  # pragma: no cover - compiled
     """Sample segment ``j`` of the ``m`` active photons and record it.
 
     Per state row: the scattered direction (when ``scatter``; ``sampling.sample_phase``), the
     free-flight length ``t = -log1p(-u) / sigma_t``, the vertex ``x + t w``, the record row
-    ``off + i`` (photon, ``t``, ``w``, ``beta``, vertex, in-box clip of the segment), and the
+    ``off + i`` (photon, ``t``, ``w``, in-box clip of the segment), and the
     new vertex's ``prefix_ok``: false unless the previous one is true, then whether the vertex
     is inside the box and the segment unoccluded. Segments that may be occluded (their box
     meets a blocker's padded box, the first reject of ``Blockers.occluded``; every one when
@@ -150,8 +145,8 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
     ----------
     m : int
     idx : (P,) int64
-    x, w, beta : (P, 3) float
-        State rows; ``x`` and ``w`` are advanced in place.
+    x, w : (P, 3) float
+        State rows, advanced in place.
     scatter : bool
         Sample a new direction (every segment but the first).
     hg : bool
@@ -240,9 +235,6 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
         rec_idx[r] = p
         rec[r, REC_T] = t
         rec[r, REC_W], rec[r, REC_W + 1], rec[r, REC_W + 2] = w0, w1, w2
-        rec[r, REC_BETA], rec[r, REC_BETA + 1], rec[r, REC_BETA + 2] = (beta[i, 0], beta[i, 1],
-                                                                       beta[i, 2])
-        rec[r, REC_X], rec[r, REC_X + 1], rec[r, REC_X + 2] = b0, b1, b2
         rec[r, REC_CLIP], rec[r, REC_CLIP + 1] = ce, cx
         x[i, 0], x[i, 1], x[i, 2] = b0, b1, b2
         if not ok_prev[p]:
@@ -276,19 +268,23 @@ def step(m, idx, x, w, beta, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigm
 
 
 @njit(cache=True, error_model="numpy")
-def assemble(x0, oks, rec_idx, rec, rec_off, xs, ws, ts, betas, alives, clips,
+def assemble(x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas, alives, clips,
              prefix_ok):  # pragma: no cover - compiled
     """Scatter the step records into the photon-major ``PhotonPaths`` arrays.
 
     Each step's records are in increasing photon order and a photon's segments are
     consecutive from segment 1, so one cursor per step walks them while the photons are
-    written in order. Past a photon's last segment: zeros, ``alive`` false, and its last
-    vertex carried forward in ``x``.
+    written in order. The vertices and weights are recomputed as :func:`step` and
+    :func:`select` computed them (``x + t w``; ``beta / q * albedo``). Past a photon's last
+    segment: zeros, ``alive`` false, and its last vertex carried forward in ``x``.
 
     Parameters
     ----------
-    x0 : (N, 3) float
-        Light points.
+    x0, beta0 : (N, 3) float
+        Light points, emitted weights.
+    q : (D,) float
+        Roulette survival before segment ``s + 1`` (``q[0]`` unused).
+    albedo : float
     oks : (D + 1, N) bool
         ``prefix_ok`` per vertex.
     rec_idx, rec : (R,) int64, (R, REC_COLS) float
@@ -303,16 +299,23 @@ def assemble(x0, oks, rec_idx, rec, rec_off, xs, ws, ts, betas, alives, clips,
     for p in range(n):
         for c in range(3):
             xs[p, 0, c] = x0[p, c]
+        b0, b1, b2 = beta0[p, 0], beta0[p, 1], beta0[p, 2]
         run = True
         for s in range(d):
             r = cur[s]
             if run and r < rec_off[s + 1] and rec_idx[r] == p:
                 cur[s] = r + 1
-                ts[p, s] = rec[r, REC_T]
+                if s > 0:
+                    if q[s] < 1.0:
+                        b0, b1, b2 = b0 / q[s], b1 / q[s], b2 / q[s]
+                    b0, b1, b2 = b0 * albedo, b1 * albedo, b2 * albedo
+                t = rec[r, REC_T]
+                ts[p, s] = t
+                betas[p, s, 0], betas[p, s, 1], betas[p, s, 2] = b0, b1, b2
                 for c in range(3):
-                    ws[p, s, c] = rec[r, REC_W + c]
-                    betas[p, s, c] = rec[r, REC_BETA + c]
-                    xs[p, s + 1, c] = rec[r, REC_X + c]
+                    wc = rec[r, REC_W + c]
+                    ws[p, s, c] = wc
+                    xs[p, s + 1, c] = xs[p, s, c] + t * wc
                 clips[p, s, 0] = rec[r, REC_CLIP]
                 clips[p, s, 1] = rec[r, REC_CLIP + 1]
                 alives[p, s] = True
