@@ -118,6 +118,22 @@ def test_fused_finds_hits_and_nonzero_values_somewhere():
         assert np.count_nonzero(vals[:, 0] == 0) > 0, name
 
 
+@pytest.mark.parametrize("name", ["plane-t1t2", "planes"])
+def test_fused_plane_hits_carry_the_stage_data(name):
+    """``photon_pass`` hands fused hits to the MIS weights (``reconstruct``) and the UI: the
+    photon plane's fused hits have the stage path's ``data`` fields, with the same shapes."""
+    path = SCENES[[p.stem for p in SCENES].index("area_occluder")]
+    scene, blockers, rays, paths = _setup(path, True)
+    ctx = PassContext(scene, blockers, 0.0, 0, 1 << 20)
+    tech = get_technique(name)
+    prims = tech.create(paths, ctx)
+    (a, _), = _stage(tech, prims, paths, rays, ctx)
+    (b, _), = list(tech.fused_pass(prims, paths, rays, ctx))
+    assert sorted(a.data) == sorted(b.data)
+    for k in a.data:
+        assert a.data[k].shape == b.data[k].shape and a.data[k].dtype == b.data[k].dtype, k
+
+
 def test_paper_multi_pass_with_fused_members_equals_stages(monkeypatch):
     """A whole ``paper-multi`` pass, every member fused inside the MIS group, equals the same
     pass with every fused path switched off; the tally hook sees the same hits."""

@@ -241,15 +241,15 @@ def _cylinder_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                     y0, y1, y2 = o0 + s * q0, o1 + s * q1, o2 + s * q2
                     v0, v1, v2 = y0 - a0, y1 - a1, y2 - a2
                     h = _dot3(v0, v1, v2, ax0, ax1, ax2)
+                    t2 = h - T1 * c1
+                    if not t2 > 0.0:  # before x1 on the axis: rejected before normalizing
+                        continue
+                    if short and not t2 < T2:
+                        continue
                     e0, e1, e2 = v0 - h * ax0, v1 - h * ax1, v2 - h * ax2
                     ne = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
                     nrm = ne if ne > 0.0 else 1.0
                     e0, e1, e2 = e0 / nrm, e1 / nrm, e2 / nrm  # e_r*
-                    t2 = h - T1 * c1
-                    if not t2 > 0.0:
-                        continue
-                    if short and not t2 < T2:
-                        continue
                     ndp = T1 * s1 * abs(_dot3(e0, e1, e2, q0, q1, q2))
                     if not ndp > NDP_MIN:
                         continue
