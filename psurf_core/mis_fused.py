@@ -189,18 +189,6 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
     hg_c = par[4]
     nan = np.nan
     nm = mem.shape[0]
-    # The densities the group needs, and the short variants' extra factors.
-    has = np.zeros(11, np.bool_)
-    short = np.zeros(11, np.bool_)
-    for jm in range(nm):
-        has[mem[jm, 0]] = True
-        if mem[jm, 1] != 0:
-            short[mem[jm, 0]] = True
-    h_pl, h_13, h_23, h_co, h_cy = has[_PLANE], has[_GP13], has[_GP23], has[_CONE], has[_CYL]
-    h_ss, h_sc, h_sd = has[_SS_SPHERE], has[_SS_CONE], has[_SS_DISK]
-    h_uv, h_ut, h_vt = has[_SS_UV], has[_SS_UT], has[_SS_VT]
-    s_t1 = short[_CONE] or short[_SS_CONE] or short[_SS_DISK] or short[_SS_UT] or short[_SS_VT]
-    s_t2, s_12, s_13, s_23 = short[_CYL], short[_PLANE], short[_GP13], short[_GP23]
     # What the hits' technique replaces.
     set_t1 = (code == _PLANE or code == _GP13 or code == _CONE or code == _SS_CONE
               or code == _SS_DISK or code == _SS_UT or code == _SS_VT)
@@ -210,6 +198,10 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
               or code == _SS_DISK)
     set_uv = code == _SS_UV or code == _SS_UT or code == _SS_VT
     ok = np.zeros(nm, np.bool_)
+    has = np.zeros(11, np.bool_)  # a member of this code can produce the current path
+    short = np.zeros(11, np.bool_)  # ... and one of them is short
+    h_pl = h_13 = h_23 = h_co = h_cy = h_ss = h_sc = h_sd = h_uv = h_ut = h_vt = False
+    s_t1 = s_t2 = s_12 = s_13 = s_23 = False
     qt = np.zeros(11)  # long density of each technique code on the current hit
     sf = np.ones(11)  # short factor of each code
     qb = np.zeros(nm)
@@ -261,11 +253,24 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
             bqw2 = (bf3 if K >= 3 else 1.0) * bpw2  # surface_common.q_to_w2
             bpu = 2.0 * pk * (1.0 - bu) if kind == _MESH else 1.0
             bpv = 2.0 * pk * (1.0 - bv) if kind == _MESH else 1.0
-            # ---- Technique.can_produce of every member
+            # ---- Technique.can_produce of every member; only their densities are needed
             ik = np.int64(kind)
+            has[:] = False
+            short[:] = False
             for jm in range(nm):
                 ok[jm] = (K >= mem[jm, 2] and (mem[jm, 3] < 0 or K <= mem[jm, 3])
                           and ((mem[jm, 4] >> ik) & 1) == 1)
+                if ok[jm]:
+                    has[mem[jm, 0]] = True
+                    if mem[jm, 1] != 0:
+                        short[mem[jm, 0]] = True
+            h_pl, h_13, h_23 = has[_PLANE], has[_GP13], has[_GP23]
+            h_co, h_cy = has[_CONE], has[_CYL]
+            h_ss, h_sc, h_sd = has[_SS_SPHERE], has[_SS_CONE], has[_SS_DISK]
+            h_uv, h_ut, h_vt = has[_SS_UV], has[_SS_UT], has[_SS_VT]
+            s_t1 = (short[_CONE] or short[_SS_CONE] or short[_SS_DISK] or short[_SS_UT]
+                    or short[_SS_VT])
+            s_t2, s_12, s_13, s_23 = short[_CYL], short[_PLANE], short[_GP13], short[_GP23]
         # ---- reconstruct: the hit's integrated dimensions replace the photon's.
         w1x, w1y, w1z, t1 = bw1x, bw1y, bw1z, bt1
         w2x, w2y, w2z, t2 = bw2x, bw2y, bw2z, bt2
