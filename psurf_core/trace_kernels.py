@@ -408,3 +408,31 @@ def emit_mesh(k, u_s, u_r, u_c, cphi, sphi, triangles, normals, bary_out, x_out,
             n_out[i, c] = normals[f, c]
         w_out[i, 0], w_out[i, 1], w_out[i, 2] = _direction_about(
             normals[f, 0], normals[f, 1], normals[f, 2], np.sqrt(u_c[i]), cphi[i], sphi[i])
+
+
+@njit(cache=True, error_model="numpy")
+def search_right(cdf, u, out):  # pragma: no cover - compiled
+    """``out[i] = numpy.searchsorted(cdf, u[i], side="right")`` for a sorted ``cdf``: the
+    first index whose entry is greater than ``u[i]`` in numpy's order (NaN after every
+    number), found by bisection. numpy's own search takes ~170 ns per random key here.
+
+    Parameters
+    ----------
+    cdf : (K,) float
+        Non-decreasing.
+    u : (M,) float
+    out : (M,) intp
+        Written.
+    """
+    k = cdf.shape[0]
+    for i in range(u.shape[0]):
+        v = u[i]
+        lo, hi = 0, k
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            c = cdf[mid]
+            if v < c or (c != c and v == v):
+                hi = mid
+            else:
+                lo = mid + 1
+        out[i] = lo

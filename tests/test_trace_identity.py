@@ -206,3 +206,18 @@ def test_plane_skip_is_sound():
     # It decides the segments that leave the plane (but the most grazing) and those clear
     # of it; it leaves crossings near either end to the exact test.
     assert decided[0] > 0.7 and decided[4] == 1.0, decided
+
+
+def test_search_right_is_searchsorted():
+    """Emission's compiled search picks what ``numpy.searchsorted(side="right")`` picks:
+    ties, repeated cdf values, NaN, keys outside [0, 1]."""
+    from psurf_core.trace_kernels import search_right
+
+    rng = np.random.default_rng(0)
+    for k in (1, 2, 3, 7, 320):
+        for cdf in (np.cumsum(rng.random(k)), np.sort(rng.integers(1, 4, k)).astype(float),
+                    np.r_[np.cumsum(rng.random(k)), [np.nan] * 3]):
+            u = np.r_[rng.random(2000), cdf[:50], [0.0, 1.0, np.nan, -1.0, 2.0, np.inf]]
+            out = np.empty(u.size, dtype=np.intp)
+            search_right(cdf, u, out)
+            assert np.array_equal(out, np.searchsorted(cdf, u, side="right")), (k, cdf[:4])
