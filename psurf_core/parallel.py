@@ -34,7 +34,13 @@ __all__ = ["pass_pool", "render_parallel", "warm_pool"]
 
 
 def _ignore_sigint() -> None:
+    """Worker start-up: ignore SIGINT (Ctrl-C reaches the parent only) and run the compiled
+    kernels on one thread, since the pool's processes already fill the cores (numba would
+    otherwise start ``NUMBA_NUM_THREADS`` per worker)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    import numba
+
+    numba.set_num_threads(1)
 
 
 def pass_pool(jobs: int) -> ProcessPoolExecutor:

@@ -167,3 +167,54 @@ def test_a_time_budget_warms_the_kernel_up_first_without_changing_the_image(monk
     reference = parse_estimator("reference", scene)
     rmod.warm_up(scene, reference, settings)
     assert len(warmed_passes) == 4
+
+
+@pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
+def test_threads_change_nothing(name, monkeypatch):
+    """The chunks shared among threads (count, prefix sum, fill) hold the same hits in the
+    same order with the same values as one thread's, deferred mesh shadow tests included."""
+    from psurf_core.techniques import planes_fused
+
+    monkeypatch.setattr(planes_fused, "_THREADED_MIN_PAIRS", 0)
+    scene = load_scene(SCENES[[p.stem for p in SCENES].index(name)])
+    scene = replace(scene, camera=replace(scene.camera, width=32, height=24))
+    blockers = blockers_of(scene)
+    rays = camera_rays(scene, 2, np.random.default_rng(1), blockers=blockers)
+    paths = trace(scene, 300, np.random.default_rng(2), blockers=blockers)
+    tech = PhotonPlane(True)
+    ctx = PassContext(scene, blockers, 0.0, 0, 20000)
+    runs = []
+    for threads in (1, 3):  # pieces on 3 threads, whatever the machine has
+        monkeypatch.setattr(planes_fused, "get_num_threads", lambda t=threads: t)
+        prims = tech.create(paths, ctx)
+        runs.append([(h, v.copy()) for h, v in tech.fused_pass(prims, paths, rays, ctx)])
+    (one, many) = runs
+    assert len(one) == len(many) > 1
+    for (ha, va), (hb, vb) in zip(one, many, strict=True):
+        for a, b in [(ha.ray, hb.ray), (ha.prim, hb.prim), (ha.s, hb.s), (va, vb)]:
+            np.testing.assert_array_equal(a, b)
+        for k in ha.data:
+            np.testing.assert_array_equal(ha.data[k], hb.data[k])
+
+
+def test_output_buffers_are_reused_only_when_released():
+    """Hits of a chunk that something still references (even through a view of a view) are
+    never overwritten; released ones are reused."""
+    from psurf_core.techniques.planes_fused import _HitBuffers
+
+    pool = _HitBuffers()
+    first = pool.take(100)
+    first[0][:] = 7
+    kept = first[0][10:20][::2]  # a view of a view keeps the lease alive
+    del first
+    second = pool.take(100)  # slot 0 is leased: slot 1
+    third = pool.take(100)  # both leased: fresh memory
+    for out in (second, third):
+        out[0][:] = -1
+    np.testing.assert_array_equal(kept, 7)
+    s1 = pool.storage[1].__array_interface__["data"][0]
+    assert second[0].__array_interface__["data"][0] == s1
+    del second, third
+    fourth = pool.take(50)  # slot 0 still leased (kept), slot 1 released: reused
+    assert fourth[0].__array_interface__["data"][0] == s1
+    np.testing.assert_array_equal(kept, 7)
