@@ -8,10 +8,13 @@ deepest look-back of any technique is three segments: the generalized planes reb
 ``x2, x1`` from ``x3``), so escaped photons cost a bounded amount of work and bias nothing.
 
 Speed (issue #6): the random numbers are drawn depth by depth exactly as the numpy
-implementation drew them (same calls, same sizes, same order) and ``cos``/``sin``/``log1p`` stay
-numpy's; the per-photon arithmetic of a depth step and the final scatter into the arrays below
-run in compiled loops (:mod:`psurf_core.trace_kernels`) with the same IEEE operations, so the
-output is bit-identical to it (``tests/test_trace_identity.py``).
+implementation drew them (the same stream, in the same order, of the same sizes) and
+``cos``/``sin``/``log1p`` stay numpy's; the per-photon arithmetic of emission and of a depth
+step, and the final scatter into the arrays below, run in compiled loops
+(:mod:`psurf_core.trace_kernels`) with the same IEEE operations. ``Blockers.occluded`` gets
+exactly the segments it always got (its BLAS dot products round differently in other arrays)
+or, when it provably finds nothing, is not called. The output is bit-identical to the numpy
+implementation's (``tests/test_trace_identity.py``).
 
 Vertex numbering: ``x[:, 0]`` is the light point and ``x[:, j]`` the photon's ``j``-th
 scattering vertex; segment ``j`` (stored at index ``j - 1``) goes from vertex ``j - 1`` to
