@@ -17,8 +17,9 @@ order (its ``einsum`` dots and ``np.cross`` included), so weights agree to round
 technique or hit layout this module does not know (:func:`fast_weights` returns ``None``).
 
 Covered techniques (exact types, long and short): ``plane-t1t2``, ``plane-t1t3``,
-``plane-t2t3``, ``cone``, ``cylinder``, ``ss-sphere``, ``ss-cone``, ``ss-disk``,
-``ss-plane-{uv,ut,vt}``: the members of ``paper-single``, ``paper-multi`` and ``paper-full``.
+``plane-t2t3``, ``cone``, ``cylinder``, ``sphere``, ``disk``, ``ss-sphere``, ``ss-cone``,
+``ss-disk``, ``ss-plane-{uv,ut,vt}``: the members of ``paper-single``, ``paper-multi`` and
+``paper-full``, and more; ``hyperboloid`` and ``torus`` (roots of quartics) are not.
 The kernel is single-threaded and compiled once per clone (``cache=True``).
 """
 
@@ -32,14 +33,17 @@ from .path_record import KIND_CODE, photon_table
 from .sampling import INV_4PI
 from .techniques.cones import PhotonCone
 from .techniques.cylinders import PhotonCylinder
+from .techniques.disks import PhotonDisk
 from .techniques.generalized_planes import GeneralizedPlane
 from .techniques.planes import PhotonPlane
 from .techniques.single import SingleCone, SingleDisk, SingleSphere
 from .techniques.single_planes import SinglePlane
+from .techniques.spheres import PhotonSphere
 
 #: Technique codes of the kernel.
 (_PLANE, _GP13, _GP23, _CONE, _CYL, _SS_SPHERE, _SS_CONE, _SS_DISK, _SS_UV, _SS_UT,
- _SS_VT) = range(11)
+ _SS_VT, _SPHERE, _DISK) = range(13)
+_N_CODES = 13
 
 #: Hit data each reconstructing technique contributes: (``r0``, ``r1``, ``wv``) keys of
 #: ``Hits.data`` (None: not read).
@@ -49,6 +53,7 @@ _HIT_KEYS = {
     _SS_SPHERE: (None, None, None), _SS_CONE: (None, None, None),
     _SS_DISK: (None, None, None),
     _SS_UV: ("a", "b", None), _SS_UT: ("a", "b", None), _SS_VT: ("a", "b", None),
+    _SPHERE: (None, None, "w1"), _DISK: ("t1", None, "w1"),
 }
 
 _POINT, _MESH = KIND_CODE["point"], KIND_CODE["mesh"]
@@ -67,6 +72,10 @@ def technique_code(tech) -> int | None:
         return _CONE
     if t is PhotonCylinder:
         return _CYL
+    if t is PhotonSphere:
+        return _SPHERE
+    if t is PhotonDisk:
+        return _DISK
     if t is SingleSphere:
         return _SS_SPHERE
     if t is SingleCone:
@@ -191,19 +200,20 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
     nm = mem.shape[0]
     # What the hits' technique replaces.
     set_t1 = (code == _PLANE or code == _GP13 or code == _CONE or code == _SS_CONE
-              or code == _SS_DISK or code == _SS_UT or code == _SS_VT)
+              or code == _SS_DISK or code == _SS_UT or code == _SS_VT or code == _DISK)
     set_t2 = code == _PLANE or code == _GP23 or code == _CYL
     set_t3 = code == _GP13 or code == _GP23
     set_w1 = (code == _CONE or code == _CYL or code == _SS_SPHERE or code == _SS_CONE
-              or code == _SS_DISK)
+              or code == _SS_DISK or code == _SPHERE or code == _DISK)
     set_uv = code == _SS_UV or code == _SS_UT or code == _SS_VT
     ok = np.zeros(nm, np.bool_)
-    has = np.zeros(11, np.bool_)  # a member of this code can produce the current path
-    short = np.zeros(11, np.bool_)  # ... and one of them is short
+    has = np.zeros(_N_CODES, np.bool_)  # a member of this code can produce the current path
+    short = np.zeros(_N_CODES, np.bool_)  # ... and one of them is short
     h_pl = h_13 = h_23 = h_co = h_cy = h_ss = h_sc = h_sd = h_uv = h_ut = h_vt = False
+    h_sp = h_di = False
     s_t1 = s_t2 = s_12 = s_13 = s_23 = False
-    qt = np.zeros(11)  # long density of each technique code on the current hit
-    sf = np.ones(11)  # short factor of each code
+    qt = np.zeros(_N_CODES)  # long density of each technique code on the current hit
+    sf = np.ones(_N_CODES)  # short factor of each code
     qb = np.zeros(nm)
     last = -1
     K = 0
@@ -268,8 +278,9 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
             h_co, h_cy = has[_CONE], has[_CYL]
             h_ss, h_sc, h_sd = has[_SS_SPHERE], has[_SS_CONE], has[_SS_DISK]
             h_uv, h_ut, h_vt = has[_SS_UV], has[_SS_UT], has[_SS_VT]
+            h_sp, h_di = has[_SPHERE], has[_DISK]
             s_t1 = (short[_CONE] or short[_SS_CONE] or short[_SS_DISK] or short[_SS_UT]
-                    or short[_SS_VT])
+                    or short[_SS_VT] or short[_DISK])
             s_t2, s_12, s_13, s_23 = short[_CYL], short[_PLANE], short[_GP13], short[_GP23]
         # ---- reconstruct: the hit's integrated dimensions replace the photon's.
         w1x, w1y, w1z, t1 = bw1x, bw1y, bw1z, bt1
@@ -286,8 +297,10 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
         elif code == _GP23:
             t3 = r0[h]
             t2 = r1[h]
-        elif code == _CONE:
+        elif code == _CONE or code == _DISK:
             t1 = r0[h]
+            w1x, w1y, w1z = wv[h, 0], wv[h, 1], wv[h, 2]
+        elif code == _SPHERE:
             w1x, w1y, w1z = wv[h, 0], wv[h, 1], wv[h, 2]
         elif code == _CYL:
             t2 = r0[h]
@@ -338,6 +351,7 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
         if s_t1:
             e1 = np.exp(-st * t1)
             sf[_CONE] = sf[_SS_CONE] = sf[_SS_DISK] = sf[_SS_UT] = sf[_SS_VT] = e1
+            sf[_DISK] = e1
         if s_t2:
             sf[_CYL] = np.exp(-st * t2)
         if s_12:
@@ -375,6 +389,15 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
                 ny = t1 * (c * w2y - w1y)
                 nz = t1 * (c * w2z - w1z)
                 qt[_CYL] = qw2 * pc1 * f1 * abs(_dot(nx, ny, nz, px, py, pz))
+        if h_sp:  # spheres.py: q_{<=w2} p(t2) p(t1) t1^2 |w1 . psi|
+            tt = t1 * t1
+            qt[_SPHERE] = qw2 * f2 * f1 * abs(_dot(tt * w1x, tt * w1y, tt * w1z, px, py, pz))
+        if h_di:  # disks.py: q_{<=w2} p(t2) (1/2pi) t1 |(w1 x w2) . psi| / s1^2
+            nx = w1y * w2z - w1z * w2y
+            ny = w1z * w2x - w1x * w2z
+            nz = w1x * w2y - w1y * w2x
+            kf = t1 / _dot(nx, ny, nz, nx, ny, nz)
+            qt[_DISK] = qw2 * f2 * _INV_2PI * abs(_dot(kf * nx, kf * ny, kf * nz, px, py, pz))
         if h_ss:
             tt = t1 * t1
             qt[_SS_SPHERE] = puv * f1 * abs(_dot(tt * w1x, tt * w1y, tt * w1z, px, py, pz))

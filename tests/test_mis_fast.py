@@ -6,7 +6,7 @@
   every hit of every member.
 * The weights of all members on one reconstructed path sum to one (where any member has a
   density).
-* A member the kernel does not know (``sphere``) sends the whole set to the numpy path.
+* A member the kernel does not know (``hyperboloid``) sends the whole set to the numpy path.
 * Rendered images with the kernel equal those of the numpy path.
 * ``photon_record``'s compiled gather equals numpy's fancy indexing, bit for bit.
 """
@@ -37,7 +37,8 @@ SCENES = sorted((Path(__file__).resolve().parent.parent / "scenes").glob("*.toml
 SPECS = ["paper-multi", "paper-single", "mis-power:plane-t1t2+plane-t1t3-short+plane-t2t3"
          "+cone-short+cylinder-short+plane-t1t2-short",
          "mis:ss-plane-uv+ss-plane-ut-short+ss-plane-vt-short+ss-cone-short+ss-disk-short"
-         "+ss-sphere+cone+plane-t2t3"]
+         "+ss-sphere+cone+plane-t2t3",
+         "mis-power:sphere+disk+disk-short+cone+plane-t1t3"]
 RTOL, ATOL = 1e-12, 1e-15
 
 
@@ -114,7 +115,7 @@ def test_negative_hg_and_power_heuristic():
 
 def test_unknown_member_falls_back_to_numpy():
     sc = _small(load_scene(SCENES[0]))
-    spec = "mis:cone+sphere"
+    spec = "mis:cone+hyperboloid"
     chunks = list(_chunks(sc, spec, photons=150))
     assert chunks
     for tech, group, weighting, hits, prims, paths, rays, ctx in chunks:
