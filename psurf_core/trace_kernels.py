@@ -215,18 +215,23 @@ def step(m, idx, x, w, scatter, hg, g, u_mu, cphi, sphi, log1p_neg_u, sigma_t,
         t = -log1p_neg_u[i] / sigma_t
         a0, a1, a2 = x[i, 0], x[i, 1], x[i, 2]
         b0, b1, b2 = a0 + t * w0, a1 + t * w1, a2 + t * w2
-        # geometry.ray_box of the segment's ray, then np.clip(t_enter / t_exit, 0, t)
-        te = -np.inf
-        tx = np.inf
-        for c in range(3):
-            dc = w[i, c]
-            inv = 1.0 / (PARALLEL_EPS if abs(dc) < PARALLEL_EPS else dc)
-            t0 = (bmin[c] - x[i, c]) * inv
-            t1 = (bmax[c] - x[i, c]) * inv
-            lo = t0 if t0 < t1 else t1
-            hi = t1 if t0 < t1 else t0
-            te = lo if c == 0 or lo > te else te
-            tx = hi if c == 0 or hi < tx else tx
+        # geometry.ray_box of the segment's ray (slabs: min/max of the two plane distances,
+        # then the largest entry and the smallest exit), then np.clip(t_enter / t_exit, 0, t)
+        i0 = 1.0 / (PARALLEL_EPS if abs(w0) < PARALLEL_EPS else w0)
+        i1 = 1.0 / (PARALLEL_EPS if abs(w1) < PARALLEL_EPS else w1)
+        i2 = 1.0 / (PARALLEL_EPS if abs(w2) < PARALLEL_EPS else w2)
+        p0, q0 = (bmin[0] - a0) * i0, (bmax[0] - a0) * i0
+        p1, q1 = (bmin[1] - a1) * i1, (bmax[1] - a1) * i1
+        p2, q2 = (bmin[2] - a2) * i2, (bmax[2] - a2) * i2
+        lo0, hi0 = (p0, q0) if p0 < q0 else (q0, p0)
+        lo1, hi1 = (p1, q1) if p1 < q1 else (q1, p1)
+        lo2, hi2 = (p2, q2) if p2 < q2 else (q2, p2)
+        te = lo0
+        te = lo1 if lo1 > te else te
+        te = lo2 if lo2 > te else te
+        tx = hi0
+        tx = hi1 if hi1 < tx else tx
+        tx = hi2 if hi2 < tx else tx
         ce = te if te > 0.0 else 0.0
         ce = ce if ce < t else t
         cx = tx if tx > 0.0 else 0.0
