@@ -4,9 +4,14 @@ One kernel per family walks candidate pixel spans (``spans`` rows ``(prim, row, 
 primitive-major) and each pixel's rays, solves the camera ray against the primitive, and for
 every root the stage path keeps (the same tests in the same floating-point operations as
 ``intersect``) computes the per-photon contribution of ``evaluate``: visibility with the
-sphere / box / emitter-quad shadow tests of ``planes_fused._occluded`` inline, a segment whose
-box meets a triangle mesh's box left ``_DEFER`` for :meth:`Blockers.occluded`. Driven by
-:mod:`.surfaces_fused`, which builds the tables below and resolves the deferred segments.
+sphere / box / emitter-quad shadow tests of ``planes_fused._occluded`` (one compiled copy,
+:func:`_status`), a segment whose box meets a triangle mesh's box left ``_DEFER`` for
+:meth:`Blockers.occluded`. Driven by :mod:`.surfaces_fused`, which builds the tables below and
+resolves the deferred segments.
+
+numba compiles ``_occluded`` into these kernels and its cache (``cache=True``) only watches
+this file: after changing ``planes_fused._occluded``, touch this file (or clear
+``__pycache__``) so that the kernels recompile.
 
 Tables (one array per role: every array argument of a compiled call costs reference counting)
 
@@ -18,7 +23,7 @@ Tables (one array per role: every array argument of a compiled call costs refere
 ``pt`` (M, F) float64
     Primitives: the family's columns (``_CONE_COLS``, ``_CYL_COLS``, ``_GPLANE_COLS``).
 ``med`` (9,) float64
-    ``sigma_t, sigma_s, g``, box min, box max.
+    ``sigma_t, sigma_s, g``, medium box min, box max.
 ``blk`` (N, 27) float64
     Blockers (``planes_fused._blocker_table``).
 
