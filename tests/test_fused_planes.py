@@ -171,11 +171,13 @@ def test_a_time_budget_warms_the_kernel_up_first_without_changing_the_image(monk
 
 @pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
 def test_threads_change_nothing(name, monkeypatch):
-    """The chunks shared among threads (count, prefix sum, fill) hold the same hits in the
-    same order with the same values as one thread's, deferred mesh shadow tests included."""
+    """The chunks shared among threads (count, prefix sum, fill; spans by pieces of
+    primitives) hold the same hits in the same order with the same values as one thread's,
+    deferred mesh shadow tests included."""
     from psurf_core.techniques import planes_fused
 
     monkeypatch.setattr(planes_fused, "_THREADED_MIN_PAIRS", 0)
+    monkeypatch.setattr(planes_fused, "_THREADED_MIN_PRIMS", 0)
     scene = load_scene(SCENES[[p.stem for p in SCENES].index(name)])
     scene = replace(scene, camera=replace(scene.camera, width=32, height=24))
     blockers = blockers_of(scene)

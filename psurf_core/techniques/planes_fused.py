@@ -177,26 +177,28 @@ def _root(m00, m01, m02, m10, m11, m12, m20, m21, m22, sd, q0, q1, q2, s_min, s_
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _span_count(i0, i1, spans, width, cs, rt, pinhole, short, pt):  # pragma: no cover
+def _span_count(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, pinhole, short, pt,
+                p0):  # pragma: no cover - compiled
     """Hits of spans ``i0 .. i1 - 1`` (the plane solve only; arguments as
     :func:`_span_hits`)."""
     n = 0
     m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = sd = 0.0
     for i in range(i0, i1):
-        p = spans[i, 0]
-        T2p, T1p = pt[p, _PT2], pt[p, _PT1]
+        p = s_prim[i]
+        r = p - p0  # its row of pt
+        T2p, T1p = pt[r, _PT2], pt[r, _PT1]
         if pinhole:
-            m00, m01, m02 = pt[p, _PM], pt[p, _PM + 1], pt[p, _PM + 2]
-            m10, m11, m12 = pt[p, _PM + 3], pt[p, _PM + 4], pt[p, _PM + 5]
-            m20, m21, m22 = pt[p, _PM + 6], pt[p, _PM + 7], pt[p, _PM + 8]
-            sd = pt[p, _PSDET]
-        base = spans[i, 1] * width
-        for k in range(cs[base + spans[i, 2]], cs[base + spans[i, 3]]):
+            m00, m01, m02 = pt[r, _PM], pt[r, _PM + 1], pt[r, _PM + 2]
+            m10, m11, m12 = pt[r, _PM + 3], pt[r, _PM + 4], pt[r, _PM + 5]
+            m20, m21, m22 = pt[r, _PM + 6], pt[r, _PM + 7], pt[r, _PM + 8]
+            sd = pt[r, _PSDET]
+        base = s_row[i] * width
+        for k in range(cs[base + s_c0[i]], cs[base + s_c1[i]]):
             if not pinhole:
                 m00, m01, m02, m10, m11, m12, m20, m21, m22, sd = _solver_rows(
-                    pt[p, _PX2], pt[p, _PX2 + 1], pt[p, _PX2 + 2],
-                    pt[p, _PW2], pt[p, _PW2 + 1], pt[p, _PW2 + 2],
-                    pt[p, _PW1], pt[p, _PW1 + 1], pt[p, _PW1 + 2],
+                    pt[r, _PX2], pt[r, _PX2 + 1], pt[r, _PX2 + 2],
+                    pt[r, _PW2], pt[r, _PW2 + 1], pt[r, _PW2 + 2],
+                    pt[r, _PW1], pt[r, _PW1 + 1], pt[r, _PW1 + 2],
                     rt[k, _RO], rt[k, _RO + 1], rt[k, _RO + 2])
             n += _root(m00, m01, m02, m10, m11, m12, m20, m21, m22, sd,
                        rt[k, _RD], rt[k, _RD + 1], rt[k, _RD + 2], rt[k, _RSMIN],
@@ -205,7 +207,7 @@ def _span_count(i0, i1, spans, width, cs, rt, pinhole, short, pt):  # pragma: no
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _span_hits(i0, i1, spans, width, cs, rt, rid, pinhole, short, pt,
+def _span_hits(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, pinhole, short, pt, p0,
                sigma_t, sigma_s, g, bmin, bmax, blk,
                o_ray, o_prim, o_s, o_t1, o_t2, o_ndp, o_val, o_st, n, lim):  # pragma: no cover
     """Every hit of spans ``i0 .. i1 - 1`` with its contribution, in span, pixel, ray order,
@@ -213,8 +215,9 @@ def _span_hits(i0, i1, spans, width, cs, rt, rid, pinhole, short, pt,
 
     Parameters
     ----------
-    spans : (S, 4) int64
-        ``(prim, row, c0, c1)``: pixels ``c0 <= c < c1`` of image row ``row``.
+    s_prim, s_row, s_c0, s_c1 : (S,) int64
+        Spans: primitive ``s_prim`` covers pixels ``s_c0 <= c < s_c1`` of image row
+        ``s_row``.
     width : int
         Image width in pixels.
     cs : (n_pixels + 1,) int64
@@ -228,8 +231,10 @@ def _span_hits(i0, i1, spans, width, cs, rt, rid, pinhole, short, pt,
         One ray origin: the plane solve's ``m``/``sdet`` columns of ``pt`` are used.
     short : bool
         ``t2 < T2, t1 < T1`` and no ``exp(-st (t1 + t2))`` (``planes``).
-    pt : (M, 25) float64
-        Per-primitive table (columns ``_PX2`` ...).
+    pt : (P, 25) float64
+        Per-primitive table (columns ``_PX2`` ...) of primitives ``p0 .. p0 + P - 1``.
+    p0 : int
+        Primitive of ``pt``'s first row.
     sigma_t, sigma_s, g : float
         Medium coefficients (1 / scene units) and the Henyey-Greenstein ``g``.
     bmin, bmax : (3,) float64
@@ -260,20 +265,21 @@ def _span_hits(i0, i1, spans, width, cs, rt, rid, pinhole, short, pt,
     eps = 1e-9  # geometry.inside_box tolerance
     m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = sd = 0.0
     for i in range(i0, i1):
-        p = spans[i, 0]
+        p = s_prim[i]
+        r = p - p0  # its row of pt
         # Per-primitive constants, loaded once per span (a span is ~6 pairs).
-        a0, a1, a2 = pt[p, _PX2], pt[p, _PX2 + 1], pt[p, _PX2 + 2]
-        v0, v1, v2 = pt[p, _PW2], pt[p, _PW2 + 1], pt[p, _PW2 + 2]
-        u0, u1, u2 = pt[p, _PW1], pt[p, _PW1 + 1], pt[p, _PW1 + 2]
-        T2p, T1p = pt[p, _PT2], pt[p, _PT1]
-        own = pt[p, _POWN] != 0.0
+        a0, a1, a2 = pt[r, _PX2], pt[r, _PX2 + 1], pt[r, _PX2 + 2]
+        v0, v1, v2 = pt[r, _PW2], pt[r, _PW2 + 1], pt[r, _PW2 + 2]
+        u0, u1, u2 = pt[r, _PW1], pt[r, _PW1 + 1], pt[r, _PW1 + 2]
+        T2p, T1p = pt[r, _PT2], pt[r, _PT1]
+        own = pt[r, _POWN] != 0.0
         if pinhole:
-            m00, m01, m02 = pt[p, _PM], pt[p, _PM + 1], pt[p, _PM + 2]
-            m10, m11, m12 = pt[p, _PM + 3], pt[p, _PM + 4], pt[p, _PM + 5]
-            m20, m21, m22 = pt[p, _PM + 6], pt[p, _PM + 7], pt[p, _PM + 8]
-            sd = pt[p, _PSDET]
-        base = spans[i, 1] * width
-        for k in range(cs[base + spans[i, 2]], cs[base + spans[i, 3]]):
+            m00, m01, m02 = pt[r, _PM], pt[r, _PM + 1], pt[r, _PM + 2]
+            m10, m11, m12 = pt[r, _PM + 3], pt[r, _PM + 4], pt[r, _PM + 5]
+            m20, m21, m22 = pt[r, _PM + 6], pt[r, _PM + 7], pt[r, _PM + 8]
+            sd = pt[r, _PSDET]
+        base = s_row[i] * width
+        for k in range(cs[base + s_c0[i]], cs[base + s_c1[i]]):
             q0, q1, q2 = rt[k, _RD], rt[k, _RD + 1], rt[k, _RD + 2]
             if not pinhole:
                 m00, m01, m02, m10, m11, m12, m20, m21, m22, sd = _solver_rows(
@@ -346,9 +352,9 @@ def _span_hits(i0, i1, spans, width, cs, rt, rid, pinhole, short, pt,
             o_t1[n] = t1
             o_t2[n] = t2
             o_ndp[n] = ndp
-            o_val[n, 0] = pt[p, _PBETA] * scal
-            o_val[n, 1] = pt[p, _PBETA + 1] * scal
-            o_val[n, 2] = pt[p, _PBETA + 2] * scal
+            o_val[n, 0] = pt[r, _PBETA] * scal
+            o_val[n, 1] = pt[r, _PBETA + 1] * scal
+            o_val[n, 2] = pt[r, _PBETA + 2] * scal
             o_st[n, 0] = st1
             o_st[n, 1] = st2
             if st1 == _DEFER or st2 == _DEFER:
@@ -358,13 +364,13 @@ def _span_hits(i0, i1, spans, width, cs, rt, rid, pinhole, short, pt,
 
 
 @njit(cache=True, error_model="numpy")
-def _candidates(i0, i1, spans, width, cs):  # pragma: no cover - compiled
+def _candidates(i0, i1, s_row, s_c0, s_c1, width, cs):  # pragma: no cover - compiled
     """Candidate pairs (rays with medium over the spans' pixels) of spans ``i0 .. i1 - 1``:
     at most that many hits."""
     total = 0
     for i in range(i0, i1):
-        base = spans[i, 1] * width
-        total += cs[base + spans[i, 3]] - cs[base + spans[i, 2]]
+        base = s_row[i] * width
+        total += cs[base + s_c1[i]] - cs[base + s_c0[i]]
     return total
 
 
@@ -394,7 +400,7 @@ def _corner(lo, hi, upper):  # pragma: no cover - compiled
     return lo if np.isfinite(lo) else -1e30
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _screen_rects(lo, hi, cam):  # pragma: no cover - compiled
     """``binning.screen_rects`` (conservative pixel rectangles of finite boxes
     ``[lo, hi]``)."""
@@ -438,7 +444,7 @@ def _screen_rects(lo, hi, cam):  # pragma: no cover - compiled
     return x0, x1, y0, y1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
     """Per primitive: the hull polygon clipped to ``planes`` (rows ``(n, offset)``: keep
     ``x . n >= offset``; Sutherland-Hodgman as ``binning.clip_polygons``), projected to
@@ -517,7 +523,7 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
     return px, py, count, r0, nr
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - compiled
     """Per-row column spans ``[c0, c1)`` of the projected polygons of :func:`_clip_project`
     (each polygon edge clipped to the row's strip widened by ``_SPAN_MARGIN``, as
@@ -533,7 +539,15 @@ def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - comp
     o_row = np.empty(total, np.int64)
     o_c0 = np.empty(total, np.int64)
     o_c1 = np.empty(total, np.int64)
-    n = 0
+    n = _row_spans_into(px, py, count, r0, nr, x0, x1, 0, o_prim, o_row, o_c0, o_c1, 0)
+    return n, o_prim, o_row, o_c0, o_c1
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o_c1,
+                    n):  # pragma: no cover - compiled
+    """:func:`_row_spans` written to the given arrays from entry ``n``, primitive ``i`` named
+    ``p_off + i``; returns the entry after the last one written."""
     big = 1e30
     for i in range(px.shape[0]):
         cnt = count[i]
@@ -568,12 +582,12 @@ def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - comp
                 c0 = int(max(np.floor(xmin - _SPAN_MARGIN), x0[i]))
                 c1 = int(min(np.floor(xmax + _SPAN_MARGIN) + 1, x1[i]))
             if c1 > c0:
-                o_prim[n] = i
+                o_prim[n] = p_off + i
                 o_row[n] = row
                 o_c0[n] = c0
                 o_c1[n] = c1
                 n += 1
-    return n, o_prim, o_row, o_c0, o_c1
+    return n
 
 
 def _camera_vector(cam) -> np.ndarray:
@@ -585,10 +599,18 @@ def _camera_vector(cam) -> np.ndarray:
                            [th, cam.width / cam.height, cam.width, cam.height]])
 
 
+#: Primitives from which :func:`_hull_spans` is shared among threads (~1 us each).
+_THREADED_MIN_PRIMS = 2000
+
+
 def _hull_spans(cam, lo, hi, hull, box):
     """Candidate pixel spans ``(prim, row, c0, c1)`` of every primitive: what
     ``binning.screen_rects`` + ``binning._spans`` give (hull polygons clipped to the box and
-    the near plane, within the screen rectangles of ``[lo, hi]``), in compiled loops."""
+    the near plane, within the screen rectangles of ``[lo, hi]``), in compiled loops.
+
+    Many primitives are cut into consecutive pieces that numba's threads clip and project,
+    then write the spans of, in primitive order (each primitive's spans depend on it alone):
+    the same spans for any thread count."""
     bmin, bmax = (np.asarray(b, float) for b in box)
     fwd = np.asarray(cam.forward, float)
     eye = np.eye(3)
@@ -597,14 +619,48 @@ def _hull_spans(cam, lo, hi, hull, box):
                       + [np.append(fwd, float(fwd @ np.asarray(cam.position, float)) + _NEAR)])
     camv = _camera_vector(cam)
     c = np.ascontiguousarray
-    if np.isfinite(lo).all() and np.isfinite(hi).all():
-        x0, x1, y0, y1 = _screen_rects(c(lo, float), c(hi, float), camv)
-    else:  # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored
-        x0, x1, y0, y1 = screen_rects(cam, lo, hi)
-    live = (x1 > x0) & (y1 > y0)
-    px, py, count, r0, nr = _clip_project(c(hull, float), live, planes, camv, x0, x1, y0, y1)
-    n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
-    return prim[:n], row[:n], c0[:n], c1[:n]
+    lo, hi, hull = c(lo, float), c(hi, float), c(hull, float)
+    # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored
+    rects = None if np.isfinite(lo).all() and np.isfinite(hi).all() else screen_rects(cam, lo,
+                                                                                        hi)
+    m = lo.shape[0]
+    threads = get_num_threads() if m >= _THREADED_MIN_PRIMS else 1
+    if threads <= 1:
+        x0, x1, y0, y1 = rects if rects is not None else _screen_rects(lo, hi, camv)
+        live = (x1 > x0) & (y1 > y0)
+        px, py, count, r0, nr = _clip_project(hull, live, planes, camv, x0, x1, y0, y1)
+        n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
+        return prim[:n], row[:n], c0[:n], c1[:n]
+    cut = np.linspace(0, m, threads * _PIECES_PER_THREAD + 1).astype(np.int64).tolist()
+    parts = [None] * (len(cut) - 1)
+
+    def project(j):  # screen rectangles, clipped and projected hulls, rows per primitive
+        a, b = cut[j], cut[j + 1]
+        x0, x1, y0, y1 = ((c(r[a:b]) for r in rects) if rects is not None
+                          else _screen_rects(lo[a:b], hi[a:b], camv))
+        live = (x1 > x0) & (y1 > y0)
+        parts[j] = (x0, x1, *_clip_project(hull[a:b], live, planes, camv, x0, x1, y0, y1))
+
+    _on_threads(project, len(parts), threads)
+    # Each piece writes from the first row it could fill (its rows before it), then the
+    # pieces close up in order: the spans of one thread, in as much memory.
+    at = np.cumsum([0] + [int(pp[-1].sum()) for pp in parts])
+    out = [np.empty(int(at[-1]), np.int64) for _ in range(4)]
+    end = np.zeros(len(parts), np.int64)
+
+    def fill(j):
+        x0, x1, px, py, count, r0, nr = parts[j]
+        end[j] = _row_spans_into(px, py, count, r0, nr, x0, x1, cut[j], *out, at[j])
+
+    _on_threads(fill, len(parts), threads)
+    n = 0
+    for j in range(len(parts)):
+        k = int(end[j] - at[j])
+        if at[j] != n:
+            for o in out:
+                o[n:n + k] = o[at[j]:at[j] + k]  # numpy copies overlapping slices safely
+        n += k
+    return tuple(o[:n] for o in out)
 
 
 def _blocker_table(blockers):
@@ -667,26 +723,25 @@ def _ray_table(rays, n_pixels: int):
     return cs, rt, rid
 
 
-def _prim_table(prims, paths, rays, med) -> np.ndarray:
-    """(M, 25) float64: each photon plane's constants in one row (columns ``_PX2`` ...), so a
-    span loads one or two cache lines instead of one from each of nine arrays."""
+def _prim_table(prims, paths, rays, med, p0: int, p1: int) -> np.ndarray:
+    """(p1 - p0, 25) float64: the constants of photon planes ``p0 .. p1 - 1``, one row each
+    (columns ``_PX2`` ...), so a span loads a few neighbouring cache lines instead of one
+    from each of nine arrays. Built per chunk (its spans are primitive-major: one range), so
+    it never holds more than a chunk's planes."""
     d = prims.data
-    photon, K = prims.photon, prims.K
-    pt = np.zeros((len(prims), _PCOLS))
+    sl = slice(p0, p1)
+    photon, K = prims.photon[sl], prims.K[sl]
+    pt = np.zeros((p1 - p0, _PCOLS))
     x2 = pt[:, _PX2:_PX2 + 3]
-    x2[:] = d["x2"]
-    pt[:, _PW2:_PW2 + 3] = d["w2"]
-    pt[:, _PW1:_PW1 + 3] = d["w1"]
-    pt[:, _PT2] = d["T2"]
-    pt[:, _PT1] = d["T1"]
+    x2[:] = d["x2"][sl]
+    pt[:, _PW2:_PW2 + 3] = d["w2"][sl]
+    pt[:, _PW1:_PW1 + 3] = d["w1"][sl]
+    pt[:, _PT2] = d["T2"][sl]
+    pt[:, _PT1] = d["T1"][sl]
     pt[:, _PBETA:_PBETA + 3] = paths.beta[photon, K - 1]
-    if rays.origin is not None:
-        from .planes import _plane_solver
-
-        if "m" not in d:
-            d.update(_plane_solver(d["x2"], d["w2"], d["w1"], rays.origin))
-        pt[:, _PM:_PM + 9] = d["m"].reshape(-1, 9)
-        pt[:, _PSDET] = d["sdet"]
+    if rays.origin is not None:  # pinhole: the pair's solve is three dot products
+        pt[:, _PM:_PM + 9] = d["m"][sl].reshape(-1, 9)
+        pt[:, _PSDET] = d["sdet"][sl]
     # on_own_segment: x2 -> x1 is known clear (no test) when the photon's own segment K - 1
     # is (prefix_ok) and, for K = 2, x2 (the light) lies in the box; plus t2 < T2 per hit.
     pk = paths.prefix_ok
@@ -769,29 +824,31 @@ def _split(buf: np.ndarray, rows: int) -> tuple[np.ndarray, ...]:
 _BUFFERS = _HitBuffers()
 
 
-def _plane_hits(a, b, spans, width, cs, rt, rid, pinhole, short, pt, sigma_t, sigma_s, g,
+def _plane_hits(a, b, spans, width, cs, rt, rid, pinhole, short, pt, p0, sigma_t, sigma_s, g,
                 bmin, bmax, blk, threads):
     """Every hit of spans ``a .. b - 1`` and its contribution (:func:`_span_hits`).
 
-    With ``threads > 1`` the spans are cut into pieces of equal candidate pairs; the threads
-    count each piece's hits (:func:`_span_count`), and after an exclusive prefix sum write
-    each piece's hits from its offset, so the rows equal the single-threaded ones whichever
-    thread ran which piece. Counting costs ~15% more work in all; the kernels release the
-    GIL, and a thread that waits sleeps (no spinning on a busy machine).
+    ``spans`` is the tuple ``(prim, row, c0, c1)`` of (S,) arrays. With ``threads > 1`` the
+    spans are cut into pieces of equal candidate pairs; the threads count each piece's hits
+    (:func:`_span_count`), and after an exclusive prefix sum write each piece's hits from its
+    offset, so the rows equal the single-threaded ones whichever thread ran which piece.
+    Counting costs ~15% more work in all; the kernels release the GIL, and a thread that
+    waits sleeps (no spinning on a busy machine).
 
     Returns
     -------
     n_defer : int
     ray, prim, s, t1, t2, ndp, val, status : arrays of ``n`` rows (the hits)
     """
-    const = (spans, width, cs, rt, rid, pinhole, short, pt, sigma_t, sigma_s, g, bmin, bmax,
-             blk)
+    const = (*spans, width, cs, rt, rid, pinhole, short, pt, p0, sigma_t, sigma_s, g, bmin,
+             bmax, blk)
     if threads <= 1:
-        out = _BUFFERS.take(_candidates(a, b, spans, width, cs))
+        out = _BUFFERS.take(_candidates(a, b, *spans[1:], width, cs))
         n, n_defer = _span_hits(a, b, *const, *out, 0, out[0].size)
         return (n_defer, *(x[:n] for x in out))
-    base = spans[a:b, 1] * width
-    cum = np.cumsum(cs[base + spans[a:b, 3]] - cs[base + spans[a:b, 2]])
+    s_prim, s_row, s_c0, s_c1 = spans
+    base = s_row[a:b] * width
+    cum = np.cumsum(cs[base + s_c1[a:b]] - cs[base + s_c0[a:b]])
     k = threads * _PIECES_PER_THREAD
     cut = np.unique(np.concatenate([[a], a + np.searchsorted(cum, cum[-1] * np.arange(1, k) / k),
                                     [b]]))
@@ -799,7 +856,7 @@ def _plane_hits(a, b, spans, width, cs, rt, rid, pinhole, short, pt, sigma_t, si
     hits = np.zeros(len(pieces) + 1, np.int64)
 
     def count(j):
-        hits[j + 1] = _span_count(*pieces[j], spans, width, cs, rt, pinhole, short, pt)
+        hits[j + 1] = _span_count(*pieces[j], *spans, width, cs, rt, pinhole, short, pt, p0)
 
     _on_threads(count, len(pieces), threads)
     off = np.cumsum(hits)
@@ -823,6 +880,10 @@ def _on_threads(fn, n: int, threads: int) -> None:
     """``fn(j)`` for ``j = 0 .. n - 1`` on ``threads`` threads (this one and ``threads - 1``
     helpers), each taking the next ``j`` when free. An exception (Ctrl-C included) stops the
     handing out; the helpers finish the item they hold, then it is re-raised."""
+    if threads <= 1:
+        for j in range(n):
+            fn(j)
+        return
     pool = _HELPERS.get(threads - 1)
     if pool is None:
         pool = _HELPERS[threads - 1] = ThreadPoolExecutor(threads - 1, "psurf-planes")
@@ -913,21 +974,29 @@ def _fused_chunks(tech, prims, paths, rays, ctx, bl):
     if s_prim.size == 0:
         return
     cs, rt, rid = _ray_table(rays, cam.n_pixels)
-    spans = np.stack([s_prim, s_row, s_c0, s_c1], axis=1)
-    pt = _prim_table(prims, paths, rays, med)
+    spans = (s_prim, s_row, s_c0, s_c1)
+    if rays.origin is not None and "m" not in prims.data:
+        from .planes import _plane_solver
+
+        d = prims.data
+        d.update(_plane_solver(d["x2"], d["w2"], d["w1"], rays.origin))
     # Chunks as binning's (pixels x the most rays in a pixel, within max_pairs): the same
     # chunks, hence the same per-chunk sums in the image, as before the kernel was threaded.
     per_pix = max(int(np.diff(cs).max()), 1)
     bounds = _chunk_bounds((s_c1 - s_c0).astype(np.int64) * per_pix, ctx.max_pairs)
-    const = (rays.origin is not None, bool(tech.short), pt, float(med.sigma_t),
-             float(med.sigma_s), float(med.phase.g), np.ascontiguousarray(med.bounds_min, float),
-             np.ascontiguousarray(med.bounds_max, float), bl)
+    medium = (float(med.sigma_t), float(med.sigma_s), float(med.phase.g),
+              np.ascontiguousarray(med.bounds_min, float),
+              np.ascontiguousarray(med.bounds_max, float), bl)
     threads = get_num_threads()
     width = int(cam.width)
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        th = threads if _candidates(a, b, spans, width, cs) >= _THREADED_MIN_PAIRS else 1
-        n_defer, ray, prim, s, t1, t2, ndp, val, st = _plane_hits(a, b, spans, width, cs, rt,
-                                                                  rid, *const, th)
+        p0, p1 = int(s_prim[a]), int(s_prim[b - 1]) + 1
+        pt = _prim_table(prims, paths, rays, med, p0, p1)
+        big = _candidates(a, b, s_row, s_c0, s_c1, width, cs) >= _THREADED_MIN_PAIRS
+        th = threads if big else 1
+        n_defer, ray, prim, s, t1, t2, ndp, val, st = _plane_hits(
+            a, b, spans, width, cs, rt, rid, rays.origin is not None, bool(tech.short), pt, p0,
+            *medium, th)
         if ray.size == 0:
             continue
         if n_defer:
