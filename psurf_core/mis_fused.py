@@ -223,6 +223,8 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
     bw1x = bw1y = bw1z = bt1 = bw2x = bw2y = bw2z = bt2 = bw3x = bw3y = bw3z = bt3 = 0.0
     bf1 = bf2 = bf3 = bpw1 = bpw2 = bqw2 = bpu = bpv = 0.0
     lx = ly = lz = 0.0
+    bnpx = bnpy = bnpz = bn13x = bn13y = bn13z = n23x = n23y = n23z = bdd = 0.0
+    bvcox = bvcoy = bvcoz = bvcyx = bvcyy = bvcyz = 0.0
     for h in range(ray.shape[0]):
         p = prim[h]
         if p != last:
@@ -263,6 +265,22 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
             bqw2 = (bf3 if K >= 3 else 1.0) * bpw2  # surface_common.q_to_w2
             bpu = 2.0 * pk * (1.0 - bu) if kind == _MESH else 1.0
             bpv = 2.0 * pk * (1.0 - bv) if kind == _MESH else 1.0
+            # ---- the directions' vectors of the multiple-scattering densities: w1 x w2
+            # (plane, disk), w1 x w3, w2 x w3 (generalized planes), w2 - c1 w1 (cone),
+            # c1 w2 - w1 (cylinder); per hit only where the hit replaces w1
+            bnpx = bw1y * bw2z - bw1z * bw2y
+            bnpy = bw1z * bw2x - bw1x * bw2z
+            bnpz = bw1x * bw2y - bw1y * bw2x
+            bdd = _dot(bnpx, bnpy, bnpz, bnpx, bnpy, bnpz)
+            bn13x = bw1y * bw3z - bw1z * bw3y
+            bn13y = bw1z * bw3x - bw1x * bw3z
+            bn13z = bw1x * bw3y - bw1y * bw3x
+            n23x = bw2y * bw3z - bw2z * bw3y
+            n23y = bw2z * bw3x - bw2x * bw3z
+            n23z = bw2x * bw3y - bw2y * bw3x
+            c = _dot(bw1x, bw1y, bw1z, bw2x, bw2y, bw2z)
+            bvcox, bvcoy, bvcoz = bw2x - c * bw1x, bw2y - c * bw1y, bw2z - c * bw1z
+            bvcyx, bvcyy, bvcyz = c * bw2x - bw1x, c * bw2y - bw1y, c * bw2z - bw1z
             # ---- Technique.can_produce of every member; only their densities are needed
             ik = np.int64(kind)
             has[:] = False
@@ -360,44 +378,43 @@ def _weights_kernel(code, me, ray, prim, s, r0, r1, wv, photon, kk, x, w, t, pta
             sf[_GP13] = np.exp(-st * (t1 + t3))
         if s_23:
             sf[_GP23] = np.exp(-st * (t2 + t3))
+        # ---- the direction vectors (the primitive's, or rebuilt with the hit's w1)
+        npx, npy, npz, dd = bnpx, bnpy, bnpz, bdd
+        n13x, n13y, n13z = bn13x, bn13y, bn13z
+        vcox, vcoy, vcoz = bvcox, bvcoy, bvcoz
+        vcyx, vcyy, vcyz = bvcyx, bvcyy, bvcyz
+        if set_w1:
+            if h_pl or h_di:
+                npx = w1y * w2z - w1z * w2y
+                npy = w1z * w2x - w1x * w2z
+                npz = w1x * w2y - w1y * w2x
+                dd = _dot(npx, npy, npz, npx, npy, npz)
+            if h_13:
+                n13x = w1y * w3z - w1z * w3y
+                n13y = w1z * w3x - w1x * w3z
+                n13z = w1x * w3y - w1y * w3x
+            if h_co or h_cy:
+                c = _dot(w1x, w1y, w1z, w2x, w2y, w2z)
+                vcox, vcoy, vcoz = w2x - c * w1x, w2y - c * w1y, w2z - c * w1z
+                vcyx, vcyy, vcyz = c * w2x - w1x, c * w2y - w1y, c * w2z - w1z
         # ---- long densities (each technique's ``density``, same operation order)
         if h_pl:
-            nx = w1y * w2z - w1z * w2y
-            ny = w1z * w2x - w1x * w2z
-            nz = w1x * w2y - w1y * w2x
             q = (f3 if K >= 3 else 1.0) * pw2 * pw1
-            qt[_PLANE] = q * abs(_dot(nx, ny, nz, px, py, pz))
+            qt[_PLANE] = q * abs(_dot(npx, npy, npz, px, py, pz))
         if h_13:
-            nx = w1y * w3z - w1z * w3y
-            ny = w1z * w3x - w1x * w3z
-            nz = w1x * w3y - w1y * w3x
-            qt[_GP13] = f2 * pw2 * pw1 * abs(_dot(nx, ny, nz, px, py, pz))
+            qt[_GP13] = f2 * pw2 * pw1 * abs(_dot(n13x, n13y, n13z, px, py, pz))
         if h_23:
-            nx = w2y * w3z - w2z * w3y
-            ny = w2z * w3x - w2x * w3z
-            nz = w2x * w3y - w2y * w3x
-            qt[_GP23] = f1 * pw2 * pw1 * abs(_dot(nx, ny, nz, px, py, pz))
-        if h_co or h_cy:
-            c = _dot(w1x, w1y, w1z, w2x, w2y, w2z)
-            if h_co:
-                nx = t1 * (w2x - c * w1x)
-                ny = t1 * (w2y - c * w1y)
-                nz = t1 * (w2z - c * w1z)
-                qt[_CONE] = qw2 * f2 * pc1 * abs(_dot(nx, ny, nz, px, py, pz))
-            if h_cy:
-                nx = t1 * (c * w2x - w1x)
-                ny = t1 * (c * w2y - w1y)
-                nz = t1 * (c * w2z - w1z)
-                qt[_CYL] = qw2 * pc1 * f1 * abs(_dot(nx, ny, nz, px, py, pz))
+            qt[_GP23] = f1 * pw2 * pw1 * abs(_dot(n23x, n23y, n23z, px, py, pz))
+        if h_co:
+            qt[_CONE] = qw2 * f2 * pc1 * abs(_dot(t1 * vcox, t1 * vcoy, t1 * vcoz, px, py, pz))
+        if h_cy:
+            qt[_CYL] = qw2 * pc1 * f1 * abs(_dot(t1 * vcyx, t1 * vcyy, t1 * vcyz, px, py, pz))
         if h_sp:  # spheres.py: q_{<=w2} p(t2) p(t1) t1^2 |w1 . psi|
             tt = t1 * t1
             qt[_SPHERE] = qw2 * f2 * f1 * abs(_dot(tt * w1x, tt * w1y, tt * w1z, px, py, pz))
         if h_di:  # disks.py: q_{<=w2} p(t2) (1/2pi) t1 |(w1 x w2) . psi| / s1^2
-            nx = w1y * w2z - w1z * w2y
-            ny = w1z * w2x - w1x * w2z
-            nz = w1x * w2y - w1y * w2x
-            kf = t1 / _dot(nx, ny, nz, nx, ny, nz)
-            qt[_DISK] = qw2 * f2 * _INV_2PI * abs(_dot(kf * nx, kf * ny, kf * nz, px, py, pz))
+            kf = t1 / dd
+            qt[_DISK] = qw2 * f2 * _INV_2PI * abs(_dot(kf * npx, kf * npy, kf * npz, px, py, pz))
         if h_ss:
             tt = t1 * t1
             qt[_SS_SPHERE] = puv * f1 * abs(_dot(tt * w1x, tt * w1y, tt * w1z, px, py, pz))

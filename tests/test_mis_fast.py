@@ -22,6 +22,7 @@ import pytest
 import psurf_core.render as render_mod
 from psurf_core.binning import candidate_pairs
 from psurf_core.camera import camera_rays
+from psurf_core.compiled import ctrl_c_kept
 from psurf_core.estimators import parse_estimator
 from psurf_core.geometry import blockers_of
 from psurf_core.mis import member_densities, mis_weights, weights_from_densities
@@ -183,3 +184,17 @@ def test_photon_record_equals_numpy_gather(scene, spec):
         rec = photon_record(*args)
         for name, ref in _numpy_photon_record(*args).items():
             np.testing.assert_array_equal(getattr(rec, name), ref, err_msg=name)
+
+
+def test_ctrl_c_during_a_compiled_call_stays_a_keyboard_interrupt():
+    """numba reports a SIGINT handled while it boxes a result as a SystemError caused by
+    the KeyboardInterrupt: ``ctrl_c_kept`` gives callers the Ctrl-C back."""
+    with pytest.raises(KeyboardInterrupt):
+        with ctrl_c_kept():
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt as e:
+                raise SystemError("returned a result with an exception set") from e
+    with pytest.raises(SystemError):
+        with ctrl_c_kept():
+            raise SystemError("unrelated")
