@@ -187,7 +187,7 @@ def test_threads_change_nothing(name, monkeypatch):
     ctx = PassContext(scene, blockers, 0.0, 0, 20000)
     runs = []
     for threads in (1, 3):  # pieces on 3 threads, whatever the machine has
-        monkeypatch.setattr(planes_fused, "get_num_threads", lambda t=threads: t)
+        monkeypatch.setattr(planes_fused, "_threads", lambda t=threads: t)
         prims = tech.create(paths, ctx)
         runs.append([(h, v.copy()) for h, v in tech.fused_pass(prims, paths, rays, ctx)])
     (one, many) = runs
@@ -220,3 +220,20 @@ def test_output_buffers_are_reused_only_when_released():
     fourth = pool.take(50)  # slot 0 still leased (kept), slot 1 released: reused
     assert fourth[0].__array_interface__["data"][0] == s1
     np.testing.assert_array_equal(kept, 7)
+
+
+def test_threads_only_on_cores_other_processes_leave_free(monkeypatch):
+    """numba's thread count, lowered to the cores the rest of the machine leaves idle."""
+    from psurf_core.techniques import planes_fused
+
+    monkeypatch.setattr(planes_fused, "get_num_threads", lambda: 2)
+    monkeypatch.setattr(planes_fused.os, "cpu_count", lambda: 2)
+    for others, want in [(0.0, 2), (0.4, 2), (0.7, 1), (1.0, 1), (3.0, 1)]:
+        monkeypatch.setattr(planes_fused, "_OTHER_LOAD", lambda o=others: o)
+        assert planes_fused._threads() == want
+    monkeypatch.setattr(planes_fused, "get_num_threads", lambda: 1)
+    monkeypatch.setattr(planes_fused, "_OTHER_LOAD", lambda: 0.0)
+    assert planes_fused._threads() == 1
+    load = planes_fused._OtherLoad()
+    monkeypatch.setattr(planes_fused, "_LOAD_REFRESH", 0.0)
+    assert load() >= 0.0 and load() >= 0.0

@@ -23,7 +23,9 @@ once per clone (``cache=True``, in ``__pycache__``)."""
 
 from __future__ import annotations
 
+import os
 import threading
+import time
 import weakref
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -624,12 +626,15 @@ def _hull_spans(cam, lo, hi, hull, box):
     rects = None if np.isfinite(lo).all() and np.isfinite(hi).all() else screen_rects(cam, lo,
                                                                                         hi)
     m = lo.shape[0]
-    threads = get_num_threads() if m >= _THREADED_MIN_PRIMS else 1
+    threads = _threads() if m >= _THREADED_MIN_PRIMS else 1
     if threads <= 1:
         x0, x1, y0, y1 = rects if rects is not None else _screen_rects(lo, hi, camv)
         live = (x1 > x0) & (y1 > y0)
         px, py, count, r0, nr = _clip_project(hull, live, planes, camv, x0, x1, y0, y1)
         n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
+        if not _WARM:  # load the threaded path's kernel now (render.warm_up's pass)
+            _row_spans_into(px[:0], py[:0], count[:0], r0[:0], nr[:0], x0[:0], x1[:0], 0,
+                            prim, row, c0, c1, n)
         return prim[:n], row[:n], c0[:n], c1[:n]
     cut = np.linspace(0, m, threads * _PIECES_PER_THREAD + 1).astype(np.int64).tolist()
     parts = [None] * (len(cut) - 1)
@@ -872,6 +877,64 @@ def _plane_hits(a, b, spans, width, cs, rt, rid, pinhole, short, pt, p0, sigma_t
     return (int(defer.sum()), *out)
 
 
+class _OtherLoad:
+    """Cores that other processes kept busy lately (Linux ``/proc/stat``, minus this process's
+    own CPU time), so that threads are used only where a core is free.
+
+    On a machine whose cores are taken by other work a second thread cannot gain: it waits in
+    the run queue while holding a piece the first thread then waits for (measured on a
+    2-core machine with three other busy processes: 2 threads 20% slower than 1). The
+    estimate is refreshed at most every ``_LOAD_REFRESH`` seconds; where ``/proc/stat`` is
+    missing it is 0 (all of numba's threads are used). It only chooses the thread count,
+    which changes no result.
+    """
+
+    def __init__(self):
+        self.last = None  # (monotonic s, all CPUs' busy s, this process's CPU s)
+        self.others = 0.0
+        self.lock = threading.Lock()
+
+    def __call__(self) -> float:
+        now = time.monotonic()
+        with self.lock:
+            if self.last is not None and now - self.last[0] < _LOAD_REFRESH:
+                return self.others
+            try:
+                with open("/proc/stat") as f:
+                    ticks = [int(x) for x in f.readline().split()[1:]]
+            except (OSError, ValueError):
+                return 0.0
+            # user nice system idle iowait irq softirq steal: all but idle and iowait are
+            # taken (steal: by other virtual machines).
+            busy = (sum(ticks[:8]) - ticks[3] - ticks[4]) / os.sysconf("SC_CLK_TCK")
+            t = os.times()
+            own = t.user + t.system
+            if self.last is not None:
+                dt = now - self.last[0]
+                self.others = max(0.0, (busy - self.last[1] - (own - self.last[2])) / dt)
+            self.last = (now, busy, own)
+            return self.others
+
+
+#: Seconds between two readings of :class:`_OtherLoad`.
+_LOAD_REFRESH = 0.5
+
+_OTHER_LOAD = _OtherLoad()
+
+#: Non-empty once the threaded path's kernels are loaded in this process.
+_WARM: list = []
+
+
+def _threads() -> int:
+    """Threads for a large chunk: numba's thread count (``numba.set_num_threads``,
+    ``NUMBA_NUM_THREADS``), at most the cores other processes leave free (at least 1)."""
+    n = get_num_threads()
+    if n > 1:
+        free = (os.cpu_count() or 1) - _OTHER_LOAD()
+        n = max(1, min(n, int(free + 0.5)))
+    return n
+
+
 #: Helper threads of :func:`_on_threads` (started on first use, shared by all callers).
 _HELPERS: dict[int, ThreadPoolExecutor] = {}
 
@@ -987,11 +1050,17 @@ def _fused_chunks(tech, prims, paths, rays, ctx, bl):
     medium = (float(med.sigma_t), float(med.sigma_s), float(med.phase.g),
               np.ascontiguousarray(med.bounds_min, float),
               np.ascontiguousarray(med.bounds_max, float), bl)
-    threads = get_num_threads()
+    threads = _threads()
     width = int(cam.width)
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         p0, p1 = int(s_prim[a]), int(s_prim[b - 1]) + 1
         pt = _prim_table(prims, paths, rays, med, p0, p1)
+        if not _WARM:
+            # Compile or load the threaded path's kernel in the first (warm-up) pass, which
+            # is too small to use it: a time budget must not pay for it later.
+            _span_count(a, a, *spans, width, cs, rt, rays.origin is not None,
+                        bool(tech.short), pt, p0)
+            _WARM.append(True)
         big = _candidates(a, b, s_row, s_c0, s_c1, width, cs) >= _THREADED_MIN_PAIRS
         th = threads if big else 1
         n_defer, ray, prim, s, t1, t2, ndp, val, st = _plane_hits(
