@@ -5,7 +5,8 @@ Usage: ``python benchmarks/run.py [--scene scenes/area.toml] [--photons N] [--es
 Nothing here is a test: numbers depend on the machine and on whatever else runs on it (the
 JSON keeps the command line; compare runs made back to back, as ratios).
 
-What is measured (one process, one core; every rate names its own numerator and clock):
+What is measured (one process: ``planes``' compiled kernel on numba's threads, the rest on
+one core; every rate names its own numerator and clock):
 
 * **stages of one pass** (the loop of :func:`psurf_core.render.photon_pass`, timed stage by
   stage): photon vertices traced/s (``trace``), primitives created/s (``create``), candidate
@@ -20,9 +21,15 @@ What is measured (one process, one core; every rate names its own numerator and 
 * ``pass_hits_per_second``: the same hits over the wall time of a real
   :func:`psurf_core.render.render_pass` (tracing, creation and camera rays included; hits
   counted through its ``tally`` hook).
+* ``planes_threads``: ``planes`` find+eval hits/s on one thread and on numba's threads
+  (median of ``--planes-reps`` passes, interleaved): the fused kernel shares large chunks
+  among threads with the same hits in the same order, on the cores other processes leave
+  idle (``planes_fused._threads``), so on a busy machine both rows are one thread's.
 * ``two_process``: wall time of the same passes with :func:`psurf_core.parallel.render_parallel`
-  on two (warmed-up) worker processes against one process (images checked bit-identical).
-  On a machine whose cores are busy with other work the speed-up cannot reach 2.
+  on two (warmed-up) worker processes, one thread each, against one process on numba's
+  threads and on one thread (images checked bit-identical); ``planes`` at >= 10^4 photons per
+  pass, so that a pass outweighs its round trip to a worker. On a machine whose cores are
+  busy with other work the speed-up cannot reach 2.
 * ``scaling``: each rate at 1x, 2x, 4x the photon count and at 1x, 2x, 4x the image side.
 * ``peak_memory_bytes``: peak resident set size (``ru_maxrss``) of fresh subprocesses that
   render one pass of ``planes`` at 256x192: ``--memory-photons`` photons (every 32nd row's
@@ -183,8 +190,12 @@ def two_process(scene, spec: str, photons: int, passes: int) -> dict:
     """Passes/s of 2 worker processes vs 1 process (same passes; images bit-identical).
 
     The pool is started and warmed up (both workers have imported psurf) before the clock
-    starts: start-up is paid once per render command, not per pass.
+    starts: start-up is paid once per render command, not per pass. The single process runs
+    its compiled kernels on numba's threads (``planes`` shares large chunks among them; pool
+    workers use one thread each), so it is also timed on one thread: ``seconds_1t``.
     """
+    import numba
+
     from psurf_core.parallel import pass_pool, render_parallel
     from psurf_core.render import render
 
@@ -195,12 +206,43 @@ def two_process(scene, spec: str, photons: int, passes: int) -> dict:
         a = time.perf_counter()
         two = render_parallel(scene, spec, settings, passes=passes, seed=0, pool=pool)
         t2 = time.perf_counter() - a
+    threads = numba.get_num_threads()
     a = time.perf_counter()
     one = render(scene, est, settings, passes=passes, seed=0)
     t1 = time.perf_counter() - a
-    return {"passes": passes, "seconds_1": t1, "seconds_2": t2, "speedup": t1 / t2,
-            "bit_identical": bool(np.array_equal(one.mean, two.mean)
-                                  and np.array_equal(one.var, two.var))}
+    numba.set_num_threads(1)
+    try:
+        a = time.perf_counter()
+        one_t = render(scene, est, settings, passes=passes, seed=0)
+        t1t = time.perf_counter() - a
+    finally:
+        numba.set_num_threads(threads)
+    return {"passes": passes, "photons": photons, "threads": threads, "seconds_1": t1,
+            "seconds_1t": t1t, "seconds_2": t2, "speedup": t1 / t2, "speedup_vs_1t": t1t / t2,
+            "threads_speedup": t1t / t1,
+            "bit_identical": bool(all(np.array_equal(o.mean, two.mean)
+                                      and np.array_equal(o.var, two.var)
+                                      for o in (one, one_t)))}
+
+
+def planes_threads(scene, photons: int, reps: int) -> dict:
+    """``planes`` find+eval hits/s (as :func:`stage_pass` counts and times them) on one
+    thread and on all of numba's threads, the median of ``reps`` passes each (the two
+    interleaved, so other load on the machine hits both alike)."""
+    import numba
+
+    threads = numba.get_num_threads()
+    rates: dict[int, list] = {1: [], threads: []}
+    try:
+        for _ in range(reps):
+            for th in rates:
+                numba.set_num_threads(th)
+                rates[th].append(stage_pass(scene, "planes", photons)["hits_per_second"])
+    finally:
+        numba.set_num_threads(threads)
+    return {"photons": photons, "passes": reps, "threads": threads,
+            "hits_per_second_1_thread": float(np.median(rates[1])),
+            "hits_per_second": float(np.median(rates[threads]))}
 
 
 _RATES = ("photon_vertices_per_second", "primitives_per_second", "pairs_tested_per_second",
@@ -294,6 +336,8 @@ def main(argv=None) -> int:
                     help="estimators of the 1-vs-2-process comparison")
     ap.add_argument("--memory-row-step", type=int, default=32,
                     help="the 10^6-photon memory pass renders every N-th row")
+    ap.add_argument("--planes-reps", type=int, default=5,
+                    help="passes of the planes threads comparison (median)")
     ap.add_argument("--parallel-passes", type=int, default=8,
                     help="passes of the 1-vs-2-process comparison (0 skips it)")
     ap.add_argument("--quick", action="store_true",
@@ -337,14 +381,27 @@ def main(argv=None) -> int:
         "photon_vertices_per_second": vert["photon_vertices_per_second"],
         "estimators": results,
     }
+    if "planes" in args.estimators.split(","):
+        # One pass is a single noisy sample on a shared machine: the median of several, and
+        # what the threads bring.
+        pt = out["planes_threads"] = planes_threads(scene, args.photons, args.planes_reps)
+        print(f"planes find+eval, median of {pt['passes']} passes x {pt['photons']} photons: "
+              f"{pt['hits_per_second']:.3g} hits/s with numba's {pt['threads']} threads (used "
+              f"where other processes leave cores idle), {pt['hits_per_second_1_thread']:.3g} "
+              f"on 1")
     if args.parallel_passes:
         out["two_process"] = {}
         for spec in filter(None, args.parallel_estimators.split(",")):
-            # paper-multi passes are ~8x longer: fewer photons keep this step short.
-            n = args.photons if spec == "planes" else max(args.photons // 8, 1)
+            # paper-multi passes are ~8x longer: fewer photons keep this step short. planes
+            # passes of a few thousand photons take ~0.1 s, the scale of a task's round trip
+            # to a worker: 10^4 photons or more, so that the passes' own work is timed.
+            n = (max(args.photons, 10_000) if spec == "planes"
+                 else max(args.photons // 8, 1))
             tp = out["two_process"][spec] = two_process(scene, spec, n, args.parallel_passes)
             print(f"2 processes vs 1, {spec}, {tp['passes']} passes x {n} photons: "
-                  f"{tp['speedup']:.2f}x ({tp['seconds_1']:.1f} s -> {tp['seconds_2']:.1f} s; "
+                  f"{tp['speedup']:.2f}x vs 1 process on {tp['threads']} threads, "
+                  f"{tp['speedup_vs_1t']:.2f}x vs 1 thread ({tp['seconds_1']:.1f} s, "
+                  f"{tp['seconds_1t']:.1f} s -> {tp['seconds_2']:.1f} s; "
                   f"bit-identical: {tp['bit_identical']})")
     out["scaling"] = {}
     for item in filter(None, args.scaling.split(",")):
