@@ -7,6 +7,11 @@ produce a path of that scatter count from that kind of light evaluates its effec
 (balance ``b = 1``, power ``b = 2``). Weights sum to one on every path, so the combination is
 unbiased whatever the ``Q``'s are (spec section 2).
 
+:func:`mis_weights` runs the compiled kernel of :mod:`psurf_core.mis_fused` (the same
+reconstruct, densities and heuristic per hit, no (J, H) temporaries) wherever it covers the
+set's techniques; ``reconstruct`` / ``density`` / :func:`member_densities` here are the
+reference it is tested against and the path for everything else.
+
 Also the spec grammar ``mis:A+B``, ``mis-power:A+B`` and the paper's presets.
 """
 

@@ -1,13 +1,15 @@
 """Compiled MIS weights: Reconstruct + every member's density + the heuristic, per hit.
 
 :func:`psurf_core.mis.mis_weights` on the numpy path builds a full
-:class:`~psurf_core.path_record.PathRecord` per chunk of hits (about twenty (H, 3) / (H,)
-gathers), then every member's ``density`` allocates its own (H,) / (H, 3) temporaries, then a
-(J, H) array of densities becomes the weights: ~1 us per hit and member. Here one compiled
-loop does the same per hit with scalars: it reads the photon's last three segments from
-:class:`~psurf_core.trace.PhotonPaths`, replaces the integrated dimensions by the hit's roots
-(the technique's ``reconstruct``), evaluates each member's relative density ``Q_j`` (the
-technique's ``density``) and returns ``Q_i^b / sum_j Q_j^b``.
+:class:`~psurf_core.path_record.PathRecord` per chunk of hits (~40 floats per hit), then
+every member's ``density`` allocates its own (H,) / (H, 3) temporaries, then a (J, H) array
+of densities becomes the weights: ~1.1 us per hit for paper-multi's five members
+(``benchmarks/run.py --quick``, before this module). Here one compiled loop does the same
+with scalars, ~0.05 us per hit: per primitive (hits come ~100 per primitive) it reads the
+photon's last three segments from :class:`~psurf_core.trace.PhotonPaths` and what they fix;
+per hit it replaces the integrated dimensions by the hit's roots (the technique's
+``reconstruct``), evaluates each member's relative density ``Q_j`` (the technique's
+``density``) and returns ``Q_i^b / sum_j Q_j^b``.
 
 Only what the densities read is rebuilt: directions, distances, the light coordinates
 ``uv`` and ``psi`` (no density reads a vertex, except the single-scattering sphere, cone and
