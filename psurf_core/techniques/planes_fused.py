@@ -551,8 +551,12 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
     """:func:`_row_spans` written to the given arrays from entry ``n``, primitive ``i`` named
     ``p_off + i``; returns the entry after the last one written."""
     big = 1e30
+    inv_dy = np.empty(px.shape[1])  # per edge: the same for every row of the primitive
     for i in range(px.shape[0]):
         cnt = count[i]
+        for j in range(max(cnt, 0) if nr[i] > 0 else 0):
+            jn = j + 1 if j + 1 < cnt else 0
+            inv_dy[j] = 1.0 / (py[i, jn] - py[i, j])
         for row in range(r0[i], r0[i] + nr[i]):
             if cnt < 0:  # no finite hull: the rectangle
                 c0, c1 = x0[i], x1[i]
@@ -568,9 +572,8 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
                         t_lo, t_hi = 0.0, 1.0
                         hit = ya >= lo_y and ya <= hi_y
                     else:
-                        inv = 1.0 / dy
-                        ta = (lo_y - ya) * inv
-                        tb = (hi_y - ya) * inv
+                        ta = (lo_y - ya) * inv_dy[j]
+                        tb = (hi_y - ya) * inv_dy[j]
                         t_lo = max(min(ta, tb), 0.0)
                         t_hi = min(max(ta, tb), 1.0)
                         hit = t_lo <= t_hi
@@ -734,29 +737,48 @@ def _prim_table(prims, paths, rays, med, p0: int, p1: int) -> np.ndarray:
     from each of nine arrays. Built per chunk (its spans are primitive-major: one range), so
     it never holds more than a chunk's planes."""
     d = prims.data
-    sl = slice(p0, p1)
-    photon, K = prims.photon[sl], prims.K[sl]
+    pinhole = rays.origin is not None  # then the pair's solve is three dot products
+    c = np.ascontiguousarray
+    return _fill_prim_table(
+        p0, p1, c(d["x2"], float), c(d["w2"], float), c(d["w1"], float), c(d["T2"], float),
+        c(d["T1"], float), c(prims.photon, np.int64), c(prims.K, np.int64),
+        c(paths.beta, float), c(paths.prefix_ok, np.bool_), pinhole,
+        c(d["m"], float) if pinhole else np.zeros((0, 3, 3)),
+        c(d["sdet"], float) if pinhole else np.zeros(0),
+        c(med.bounds_min, float), c(med.bounds_max, float))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _fill_prim_table(p0, p1, x2, w2, w1, T2, T1, photon, K, beta, prefix_ok, pinhole, m, sdet,
+                     bmin, bmax):  # pragma: no cover - compiled
+    """:func:`_prim_table`'s rows (the same values numpy's indexing gives: copies).
+
+    ``own`` is ``on_own_segment``'s shortcut: ``x2 -> x1`` is known clear (no test) when the
+    photon's own segment ``K - 1`` is (``prefix_ok``) and, for ``K = 2``, ``x2`` (the light)
+    lies in the box (within 1e-9); the kernel adds ``t2 < T2`` per hit.
+    """
     pt = np.zeros((p1 - p0, _PCOLS))
-    x2 = pt[:, _PX2:_PX2 + 3]
-    x2[:] = d["x2"][sl]
-    pt[:, _PW2:_PW2 + 3] = d["w2"][sl]
-    pt[:, _PW1:_PW1 + 3] = d["w1"][sl]
-    pt[:, _PT2] = d["T2"][sl]
-    pt[:, _PT1] = d["T1"][sl]
-    pt[:, _PBETA:_PBETA + 3] = paths.beta[photon, K - 1]
-    if rays.origin is not None:  # pinhole: the pair's solve is three dot products
-        pt[:, _PM:_PM + 9] = d["m"][sl].reshape(-1, 9)
-        pt[:, _PSDET] = d["sdet"][sl]
-    # on_own_segment: x2 -> x1 is known clear (no test) when the photon's own segment K - 1
-    # is (prefix_ok) and, for K = 2, x2 (the light) lies in the box; plus t2 < T2 per hit.
-    pk = paths.prefix_ok
-    own = pk.reshape(-1)[photon * pk.shape[1] + (K - 1)].copy()
-    light = np.flatnonzero(own & (K == 2))
-    if light.size:
-        eps = 1e-9
-        own[light] = np.all((x2[light] >= med.bounds_min - eps)
-                            & (x2[light] <= med.bounds_max + eps), axis=1)
-    pt[:, _POWN] = own
+    eps = 1e-9
+    for r in range(p1 - p0):
+        p = p0 + r
+        for c in range(3):
+            pt[r, _PX2 + c] = x2[p, c]
+            pt[r, _PW2 + c] = w2[p, c]
+            pt[r, _PW1 + c] = w1[p, c]
+            pt[r, _PBETA + c] = beta[photon[p], K[p] - 1, c]
+        pt[r, _PT2] = T2[p]
+        pt[r, _PT1] = T1[p]
+        if pinhole:
+            for a in range(3):
+                for c in range(3):
+                    pt[r, _PM + 3 * a + c] = m[p, a, c]
+            pt[r, _PSDET] = sdet[p]
+        own = prefix_ok[photon[p], K[p] - 1]
+        if own and K[p] == 2:
+            for c in range(3):
+                if not (x2[p, c] >= bmin[c] - eps and x2[p, c] <= bmax[c] + eps):
+                    own = False
+        pt[r, _POWN] = 1.0 if own else 0.0
     return pt
 
 
