@@ -3,9 +3,9 @@
 :func:`psurf_core.mis.mis_weights` on the numpy path builds a full
 :class:`~psurf_core.path_record.PathRecord` per chunk of hits (~40 floats per hit), then
 every member's ``density`` allocates its own (H,) / (H, 3) temporaries, then a (J, H) array
-of densities becomes the weights: ~1.1 us per hit for paper-multi's five members
+of densities becomes the weights: ~1.1-1.3 us per hit for paper-multi's five members
 (``benchmarks/run.py --quick``, before this module). Here one compiled loop does the same
-with scalars, ~0.05 us per hit: per primitive (hits come ~100 per primitive) it reads the
+with scalars, ~0.08 us per hit: per primitive (hits come ~100 per primitive) it reads the
 photon's last three segments from :class:`~psurf_core.trace.PhotonPaths` and what they fix;
 per hit it replaces the integrated dimensions by the hit's roots (the technique's
 ``reconstruct``), evaluates each member's relative density ``Q_j`` (the technique's
