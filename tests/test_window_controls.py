@@ -373,7 +373,7 @@ def test_progressive_panels_tick_pick_and_modes():
         assert state.prog.job.scene is state.scene and state.acc.n == 0
         assert state.prog.job.specs == ("mis:plane-t1t2+planes", "planes")
         app.toggle_member("plane-t1t2")
-        assert state.prog.job.specs == ("plane-t1t2-short", "planes")
+        assert state.prog.job.specs == ("mis:plane-t1t2+planes~plane-t1t2", "planes")
     finally:
         app.close()
         plotter.close()
