@@ -15,11 +15,13 @@ stage path's: the same hits (spans are padded by ``_SPAN_MARGIN`` pixels, so rou
 them changes only which misses are tried), values equal to rounding
 (``tests/test_fused_planes.py``).
 
-Threads: a large chunk is cut into pieces that numba's threads (``numba.set_num_threads``;
-1 in pass-pool workers, which already fill the cores) count, then fill from their offsets
-(:func:`_plane_hits`), so the hits, their order and hence the image are the same for any
-thread count. The kernels write into reused buffers (:class:`_HitBuffers`). They are compiled
-once per clone (``cache=True``, in ``__pycache__``)."""
+Threads: a large chunk is cut into pieces that threads count, then fill from their offsets
+(:func:`_plane_hits`), and the hull spans are computed by pieces of primitives, so the hits,
+their order and hence the image are the same for any thread count. How many: numba's
+(``numba.set_num_threads``, ``NUMBA_NUM_THREADS``; 1 in pass-pool workers, which already fill
+the cores), at most the cores other processes leave idle (:func:`_threads`). The kernels
+write into reused buffers (:class:`_HitBuffers`). They are compiled once per clone
+(``cache=True``, in ``__pycache__``)."""
 
 from __future__ import annotations
 
