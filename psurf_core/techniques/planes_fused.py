@@ -961,6 +961,9 @@ def _threads() -> int:
 
 #: Helper threads of :func:`_on_threads` (started on first use, shared by all callers).
 _HELPERS: dict[int, ThreadPoolExecutor] = {}
+# A forked child has none of the parent's threads: its pools would never run a task.
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_HELPERS.clear)
 
 
 def _on_threads(fn, n: int, threads: int) -> None:
