@@ -24,7 +24,7 @@ one core; every rate names its own numerator and clock):
 * ``planes_threads``: ``planes`` find+eval hits/s on one thread and on numba's threads
   (median of ``--planes-reps`` passes, interleaved): the fused kernel shares large chunks
   among threads with the same hits in the same order, on the cores other processes leave
-  idle (``planes_fused._threads``), so on a busy machine both rows are one thread's.
+  idle (``fused_threads.thread_count``), so on a busy machine both rows are one thread's.
 * ``two_process``: wall time of the same passes with :func:`psurf_core.parallel.render_parallel`
   on two (warmed-up) worker processes, one thread each, against one process on numba's
   threads and on one thread (images checked bit-identical); ``planes`` at >= 10^4 photons per

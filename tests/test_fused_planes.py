@@ -100,7 +100,7 @@ def test_compiled_screen_rects_equal_binning():
     clipped primitive bounds are), including empty boxes and boxes reaching behind the
     camera."""
     from psurf_core.binning import screen_rects
-    from psurf_core.techniques.planes_fused import _camera_vector, _screen_rects
+    from psurf_core.techniques.fused_spans import _camera_vector, _screen_rects
 
     for path in SCENES:
         cam = load_scene(path).camera
@@ -118,7 +118,7 @@ def test_ctrl_c_inside_the_kernel_stays_a_keyboard_interrupt():
     """A SIGINT handled while numba boxes a result arrives as a chain of SystemErrors caused
     by the KeyboardInterrupt (seen with ``render --checkpoint``); the fused path turns it back
     into the KeyboardInterrupt, other SystemErrors pass through."""
-    from psurf_core.techniques.planes_fused import _interrupted
+    from psurf_core.compiled import interrupted
 
     def chain(root):
         try:
@@ -132,9 +132,9 @@ def test_ctrl_c_inside_the_kernel_stays_a_keyboard_interrupt():
         except SystemError as e:
             return e
 
-    assert _interrupted(chain(KeyboardInterrupt()))
-    assert not _interrupted(chain(ValueError("x")))
-    assert not _interrupted(SystemError("plain"))
+    assert interrupted(chain(KeyboardInterrupt()))
+    assert not interrupted(chain(ValueError("x")))
+    assert not interrupted(SystemError("plain"))
 
 
 def test_a_time_budget_warms_the_kernel_up_first_without_changing_the_image(monkeypatch):
@@ -174,10 +174,10 @@ def test_threads_change_nothing(name, monkeypatch):
     """The chunks shared among threads (count, prefix sum, fill; spans by pieces of
     primitives) hold the same hits in the same order with the same values as one thread's,
     deferred mesh shadow tests included."""
-    from psurf_core.techniques import planes_fused
+    from psurf_core.techniques import fused_spans, planes_fused
 
     monkeypatch.setattr(planes_fused, "_THREADED_MIN_PAIRS", 0)
-    monkeypatch.setattr(planes_fused, "_THREADED_MIN_PRIMS", 0)
+    monkeypatch.setattr(fused_spans, "_THREADED_MIN_PRIMS", 0)
     scene = load_scene(SCENES[[p.stem for p in SCENES].index(name)])
     scene = replace(scene, camera=replace(scene.camera, width=32, height=24))
     blockers = blockers_of(scene)
@@ -187,7 +187,8 @@ def test_threads_change_nothing(name, monkeypatch):
     ctx = PassContext(scene, blockers, 0.0, 0, 20000)
     runs = []
     for threads in (1, 3):  # pieces on 3 threads, whatever the machine has
-        monkeypatch.setattr(planes_fused, "_threads", lambda t=threads: t)
+        for mod in (planes_fused, fused_spans):
+            monkeypatch.setattr(mod, "thread_count", lambda t=threads: t)
         prims = tech.create(paths, ctx)
         runs.append([(h, v.copy()) for h, v in tech.fused_pass(prims, paths, rays, ctx)])
     (one, many) = runs
@@ -224,16 +225,16 @@ def test_output_buffers_are_reused_only_when_released():
 
 def test_threads_only_on_cores_other_processes_leave_free(monkeypatch):
     """numba's thread count, lowered to the cores the rest of the machine leaves idle."""
-    from psurf_core.techniques import planes_fused
+    from psurf_core.techniques import fused_threads
 
-    monkeypatch.setattr(planes_fused, "get_num_threads", lambda: 2)
-    monkeypatch.setattr(planes_fused.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(fused_threads, "get_num_threads", lambda: 2)
+    monkeypatch.setattr(fused_threads.os, "cpu_count", lambda: 2)
     for others, want in [(0.0, 2), (0.4, 2), (0.7, 1), (1.0, 1), (3.0, 1)]:
-        monkeypatch.setattr(planes_fused, "_OTHER_LOAD", lambda o=others: o)
-        assert planes_fused._threads() == want
-    monkeypatch.setattr(planes_fused, "get_num_threads", lambda: 1)
-    monkeypatch.setattr(planes_fused, "_OTHER_LOAD", lambda: 0.0)
-    assert planes_fused._threads() == 1
-    load = planes_fused._OtherLoad()
-    monkeypatch.setattr(planes_fused, "_LOAD_REFRESH", 0.0)
+        monkeypatch.setattr(fused_threads, "_OTHER_LOAD", lambda o=others: o)
+        assert fused_threads.thread_count() == want
+    monkeypatch.setattr(fused_threads, "get_num_threads", lambda: 1)
+    monkeypatch.setattr(fused_threads, "_OTHER_LOAD", lambda: 0.0)
+    assert fused_threads.thread_count() == 1
+    load = fused_threads._OtherLoad()
+    monkeypatch.setattr(fused_threads, "_LOAD_REFRESH", 0.0)
     assert load() >= 0.0 and load() >= 0.0

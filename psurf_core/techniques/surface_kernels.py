@@ -4,13 +4,13 @@ One kernel per family walks candidate pixel spans (``spans`` rows ``(prim, row, 
 primitive-major) and each pixel's rays, solves the camera ray against the primitive, and for
 every root the stage path keeps (the same tests in the same floating-point operations as
 ``intersect``) computes the per-photon contribution of ``evaluate``: visibility with the
-sphere / box / emitter-quad shadow tests of ``planes_fused._occluded`` (one compiled copy,
-:func:`_status`), a segment whose box meets a triangle mesh's box left ``_DEFER`` for
+sphere / box / emitter-quad shadow tests of ``fused_shadow.occluded`` (one compiled copy,
+:func:`_status`), a segment whose box meets a triangle mesh's box left ``DEFER`` for
 :meth:`Blockers.occluded`. Driven by :mod:`.surfaces_fused`, which builds the tables below and
 resolves the deferred segments.
 
-numba compiles ``_occluded`` into these kernels and its cache (``cache=True``) only watches
-this file: after changing ``planes_fused._occluded``, touch this file (or clear
+numba compiles ``occluded`` into these kernels and its cache (``cache=True``) only watches
+this file: after changing ``fused_shadow.occluded``, touch this file (or clear
 ``__pycache__``) so that the kernels recompile.
 
 Tables (one array per role: every array argument of a compiled call costs reference counting)
@@ -25,14 +25,14 @@ Tables (one array per role: every array argument of a compiled call costs refere
 ``med`` (9,) float64
     ``sigma_t, sigma_s, g``, medium box min, box max.
 ``blk`` (N, 27) float64
-    Blockers (``planes_fused._blocker_table``).
+    Blockers (``fused_shadow.blocker_table``).
 
-Each kernel returns ``n, n_defer`` (hits, hits with a ``_DEFER`` status) and arrays of
+Each kernel returns ``n, n_defer`` (hits, hits with a ``DEFER`` status) and arrays of
 ``cap`` rows whose first ``n`` are the hits: ``ray, prim`` (int64), ``s``, the roots
 (quadrics: ``t`` and ``w1`` (cap, 3); planes: ``t3, tv``), ``n_dot_psi``, ``value`` (cap, 3)
 and ``status`` (cap, 3) int8 (shadow status of up to three segments, in the stage path's
-order; unused ones ``_CLEAR``). A value is 0 where a test said blocked and unmasked where a
-status is ``_DEFER``. Separate arrays, not one table: the hits' fields are then contiguous
+order; unused ones ``CLEAR``). A value is 0 where a test said blocked and unmasked where a
+status is ``DEFER``. Separate arrays, not one table: the hits' fields are then contiguous
 slices, no copies. Single-threaded: the output order is span, pixel, ray, root.
 """
 
@@ -44,7 +44,7 @@ import numpy as np
 from numba import njit
 
 from ..sampling import INV_4PI
-from .planes_fused import _BLOCKED, _CLEAR, _DEFER, _occluded
+from .fused_shadow import BLOCKED, CLEAR, DEFER, occluded
 from .surface_common import NDP_MIN
 
 #: Column layout of ``pt`` per family (start column of each field).
@@ -111,18 +111,18 @@ def _in_box(x0, x1, x2, med):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def _status(a0, a1, a2, b0, b1, b2, blk):  # pragma: no cover - compiled
-    """Shadow status of ``a -> b``; no blockers: clear. Not inlined: ``_occluded`` is, once
+    """Shadow status of ``a -> b``; no blockers: clear. Not inlined: ``occluded`` is, once
     here, and the kernels' several call sites stay calls (a copy per site tripled the
     compile time)."""
     if blk.shape[0] == 0:
-        return _CLEAR
-    return _occluded(a0, a1, a2, b0, b1, b2, blk)
+        return CLEAR
+    return occluded(a0, a1, a2, b0, b1, b2, blk)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, cb, st0, st1, st2):  # pragma: no cover
     """Row ``n``: ray and primitive, value ``beta * scal`` (``beta``: columns ``cb..cb+2`` of
-    ``pt``), statuses; returns 1 if a status is ``_DEFER``."""
+    ``pt``), statuses; returns 1 if a status is ``DEFER``."""
     o_ray[n] = r
     o_prim[n] = p
     o_val[n, 0] = pt[p, cb] * scal
@@ -131,7 +131,7 @@ def _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, cb, st0, st1, st2):  # 
     o_st[n, 0] = st0
     o_st[n, 1] = st1
     o_st[n, 2] = st2
-    return 1 if (st0 == _DEFER or st1 == _DEFER or st2 == _DEFER) else 0
+    return 1 if (st0 == DEFER or st1 == DEFER or st2 == DEFER) else 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -187,14 +187,14 @@ def _cone_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                     if not ndp > NDP_MIN:
                         continue
                     st0 = _status(a0, a1, a2, y0, y1, y2, blk)
-                    if st0 == _BLOCKED:
+                    if st0 == BLOCKED:
                         scal = 0.0
                     else:
                         scal = _camera_vertex(-_dot3(e0, e1, e2, q0, q1, q2), s, rt[r, 6],
                                               0.0 if short else t1, med) / _TWO_PI
                         scal = scal / ndp
                     n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 8, st0,
-                                     _CLEAR, _CLEAR)
+                                     CLEAR, CLEAR)
                     o_s[n] = s
                     o_t[n] = t1
                     o_w[n, 0] = e0
@@ -262,23 +262,23 @@ def _cylinder_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                     # on_own_segment / clear_from: x2 -> x1 needs no test on the photon's
                     # own segment; otherwise x1 must lie in the box.
                     x0_, x1_, x2_ = a0 + t2 * ax0, a1 + t2 * ax1, a2 + t2 * ax2
-                    st1 = _CLEAR
+                    st1 = CLEAR
                     if own and t2 < T2:
-                        st0 = _CLEAR
+                        st0 = CLEAR
                     elif not _in_box(x0_, x1_, x2_, med):
-                        st0 = _BLOCKED
+                        st0 = BLOCKED
                     else:
                         st0 = _status(a0, a1, a2, x0_, x1_, x2_, blk)
-                    if st0 != _BLOCKED:
+                    if st0 != BLOCKED:
                         st1 = _status(x0_, x1_, x2_, y0, y1, y2, blk)
-                    if st0 == _BLOCKED or st1 == _BLOCKED:
+                    if st0 == BLOCKED or st1 == BLOCKED:
                         scal = 0.0
                     else:
                         scal = _camera_vertex(-_dot3(m0, m1, m2, q0, q1, q2), s, rt[r, 6],
                                               0.0 if short else t2, med) / _TWO_PI
                         scal = scal / ndp
                     n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 11, st0,
-                                     st1, _CLEAR)
+                                     st1, CLEAR)
                     o_s[n] = s
                     o_t[n] = t2
                     o_w[n, 0] = m0
@@ -342,21 +342,21 @@ def _gplane_kernel(spans, width, order, pix, rt, pt, med, blk, short, t1t3,
                 x11 = x21 + step * pt[p, 13]
                 x12 = x22 + step * pt[p, 14]
                 y0, y1, y2 = rt[r, 0] + s * q0, rt[r, 1] + s * q1, rt[r, 2] + s * q2
-                st1 = _CLEAR
-                st2 = _CLEAR
+                st1 = CLEAR
+                st2 = CLEAR
                 if pt[p, 21] != 0.0 and t3 < Tu:
-                    st0 = _CLEAR
+                    st0 = CLEAR
                 elif not _in_box(x20, x21, x22, med):
-                    st0 = _BLOCKED
+                    st0 = BLOCKED
                 else:
                     st0 = _status(pt[p, 9], pt[p, 10], pt[p, 11], x20, x21, x22, blk)
-                if st0 != _BLOCKED and not _in_box(x10, x11, x12, med):
-                    st1 = _BLOCKED
-                if st0 != _BLOCKED and st1 != _BLOCKED:
+                if st0 != BLOCKED and not _in_box(x10, x11, x12, med):
+                    st1 = BLOCKED
+                if st0 != BLOCKED and st1 != BLOCKED:
                     st1 = _status(x20, x21, x22, x10, x11, x12, blk)
-                if st0 != _BLOCKED and st1 != _BLOCKED:
+                if st0 != BLOCKED and st1 != BLOCKED:
                     st2 = _status(x10, x11, x12, y0, y1, y2, blk)
-                if st0 == _BLOCKED or st1 == _BLOCKED or st2 == _BLOCKED:
+                if st0 == BLOCKED or st1 == BLOCKED or st2 == BLOCKED:
                     scal = 0.0
                 else:
                     mu = -_dot3(pt[p, 15], pt[p, 16], pt[p, 17], q0, q1, q2)

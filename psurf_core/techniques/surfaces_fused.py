@@ -6,9 +6,9 @@ every candidate pair and every intermediate as numpy arrays; the quadrics test ~
 hit and keep both roots, which made them the slowest members of ``paper-multi``. Here the
 candidate spans are those binning yields (the screen rectangle's rows for the cone and the
 cylinder, the clipped hull's per-row spans for the generalized planes, via
-``planes_fused._hull_spans``), and the kernels of :mod:`.surface_kernels` walk them, writing
+``fused_spans.hull_spans``), and the kernels of :mod:`.surface_kernels` walk them, writing
 only the hits with their per-photon values. Shadow segments whose box meets a triangle mesh's
-box come back ``_DEFER`` and are tested here by :meth:`Blockers.occluded`, as the stage path
+box come back ``DEFER`` and are tested here by :meth:`Blockers.occluded`, as the stage path
 does. Hits and values equal the stage path's (``tests/test_fused_surfaces.py``): the same hits
 with the same ``data`` fields (what ``reconstruct``, hence the MIS weights, and the UI read),
 values to rounding; only the hit order within a chunk differs (span, pixel, ray, root instead
@@ -24,9 +24,11 @@ from collections.abc import Iterator
 import numpy as np
 
 from ..binning import _chunk_bounds, _pixel_ray_table, _spans, screen_rects
+from ..compiled import ctrl_c_kept
 from ..geometry import inside_box
 from .base import Hits
-from .planes_fused import _BLOCKED, _DEFER, _blocker_table, _hull_spans, _interrupted
+from .fused_shadow import BLOCKED, DEFER, blocker_table
+from .fused_spans import hull_spans
 from .surface_kernels import _cone_kernel, _cylinder_kernel, _gplane_kernel
 
 #: Families with a kernel: roots per candidate pair (the output capacity per pair).
@@ -59,7 +61,7 @@ def surface_chunks(tech, kind: str, prims, paths, rays,
     """
     if kind not in _ROOTS:
         raise ValueError(f"no fused kernel for '{kind}'")
-    bl = _blocker_table(ctx.blockers)
+    bl = blocker_table(ctx.blockers)
     if bl is None:
         return None
     order, start, counts = _pixel_ray_table(rays, ctx.scene.camera.n_pixels)
@@ -69,15 +71,11 @@ def surface_chunks(tech, kind: str, prims, paths, rays,
 
 
 def _chunks(tech, kind, prims, paths, rays, ctx, bl, order, start, counts):
-    """:func:`_fused_chunks`, with Ctrl-C kept a KeyboardInterrupt (see
-    ``planes_fused._chunks``: a SIGINT handled while numba boxes a result surfaces as a
-    SystemError caused by it)."""
-    try:
+    """:func:`_fused_chunks`, with Ctrl-C kept a KeyboardInterrupt
+    (:func:`~psurf_core.compiled.ctrl_c_kept`: a SIGINT handled while numba boxes a result
+    surfaces as a SystemError caused by it)."""
+    with ctrl_c_kept():
         yield from _fused_chunks(tech, kind, prims, paths, rays, ctx, bl, order, start, counts)
-    except SystemError as e:
-        if _interrupted(e):
-            raise KeyboardInterrupt from None
-        raise
 
 
 def _own(paths, photon, j, start, med) -> np.ndarray:
@@ -112,7 +110,7 @@ def _candidate_spans(prims, cam, box, max_pairs):
     """(S, 4) int64 rows ``(prim, row, c0, c1)``: the spans ``binning.candidate_pairs`` walks
     (primitive-major, then row), or None."""
     if prims.hull is not None:
-        spans = _hull_spans(cam, prims.lo, prims.hi, prims.hull, box)
+        spans = hull_spans(cam, prims.lo, prims.hi, prims.hull, box)
     else:
         x0, x1, y0, y1 = screen_rects(cam, prims.lo, prims.hi)
         spans = _spans(cam, x0, x1, y0, y1, None, box, max_pairs)
@@ -187,12 +185,12 @@ def _resolve(kind, blockers, rays, prims, hits, st, val):
     """Exact shadow tests (:meth:`Blockers.occluded`) of the deferred segments; zero the
     values (rows of ``val``, (H, 3), in place) of the hits found blocked. A hit is visible
     when every segment is clear, whichever order they are tested in."""
-    rows = np.flatnonzero(np.any(st == _DEFER, axis=1))
+    rows = np.flatnonzero(np.any(st == DEFER, axis=1))
     sub = hits.select(rows)
     st = st[rows]
-    ok = ~np.any(st == _BLOCKED, axis=1)
+    ok = ~np.any(st == BLOCKED, axis=1)
     for k, (a, b) in enumerate(_segments(kind, rays, prims, sub)):
-        idx = np.flatnonzero(ok & (st[:, k] == _DEFER))
+        idx = np.flatnonzero(ok & (st[:, k] == DEFER))
         if idx.size:
             ok[idx] = ~blockers.occluded(a[idx], b[idx])
     val[rows[~ok]] = 0.0

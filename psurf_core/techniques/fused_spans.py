@@ -1,0 +1,318 @@
+"""Compiled screen footprints of primitives: the candidate pixel spans that
+``binning`` computes (``screen_rects`` + ``_spans``), in compiled loops.
+
+:func:`hull_spans` clips each primitive's hull polygon to the medium box and the near plane
+(:func:`_clip_project`), projects it, and writes its per-row column spans ``[c0, c1)`` within
+the primitive's screen rectangle (:func:`_screen_rects`, :func:`_row_spans_into`), padded by
+``binning._SPAN_MARGIN`` pixels, so rounding changes only which misses are tried. Many
+primitives are cut into pieces for threads (:mod:`.fused_threads`); the spans are the same
+for any thread count. Used by the fused plane and surface kernels (:mod:`.planes_fused`,
+:mod:`.surfaces_fused`); compiled once per clone (``cache=True``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..binning import _NEAR, _SPAN_MARGIN, screen_rects
+from .fused_threads import PIECES_PER_THREAD, on_threads, thread_count
+
+
+@njit(cache=True, error_model="numpy")
+def _project(x, y, z, cam):  # pragma: no cover - compiled
+    """``camera.project`` of one point; ``cam`` as in :func:`hull_spans`."""
+    vx, vy, vz = x - cam[0], y - cam[1], z - cam[2]
+    depth = vx * cam[3] + vy * cam[4] + vz * cam[5]
+    u = (vx * cam[6] + vy * cam[7] + vz * cam[8]) / (depth * cam[12] * cam[13])
+    w = (vx * cam[9] + vy * cam[10] + vz * cam[11]) / (depth * cam[12])
+    return (u + 1.0) * 0.5 * cam[14], (1.0 - w) * 0.5 * cam[15], depth
+
+
+@njit(cache=True, error_model="numpy")
+def _clip_int(v, hi):  # pragma: no cover - compiled
+    """``np.clip(np.nan_to_num(v), 0, hi).astype(int64)`` of one value."""
+    if np.isnan(v):
+        return 0
+    return int(min(max(v, 0.0), hi))
+
+
+@njit(cache=True, error_model="numpy")
+def _corner(lo, hi, upper):  # pragma: no cover - compiled
+    """One coordinate of a box corner; a non-finite bound stands for -+1e30."""
+    if upper:
+        return hi if np.isfinite(hi) else 1e30
+    return lo if np.isfinite(lo) else -1e30
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _screen_rects(lo, hi, cam):  # pragma: no cover - compiled
+    """``binning.screen_rects`` (conservative pixel rectangles of finite boxes
+    ``[lo, hi]``)."""
+    m = lo.shape[0]
+    w, h = cam[14], cam[15]
+    x0 = np.zeros(m, np.int64)
+    x1 = np.zeros(m, np.int64)
+    y0 = np.zeros(m, np.int64)
+    y1 = np.zeros(m, np.int64)
+    for i in range(m):
+        empty = False
+        for ax in range(3):
+            if not (lo[i, ax] <= hi[i, ax]):
+                empty = True
+        behind, all_behind = False, True
+        xmin, xmax, ymin, ymax = np.nan, np.nan, np.nan, np.nan
+        for corner in range(8):
+            cx = _corner(lo[i, 0], hi[i, 0], (corner >> 2) & 1)
+            cy = _corner(lo[i, 1], hi[i, 1], (corner >> 1) & 1)
+            cz = _corner(lo[i, 2], hi[i, 2], corner & 1)
+            px, py, depth = _project(cx, cy, cz, cam)
+            if depth <= 1e-9:
+                behind = True
+            else:
+                all_behind = False
+            # nanmin / nanmax
+            if not np.isnan(px):
+                xmin = px if np.isnan(xmin) else min(xmin, px)
+                xmax = px if np.isnan(xmax) else max(xmax, px)
+            if not np.isnan(py):
+                ymin = py if np.isnan(ymin) else min(ymin, py)
+                ymax = py if np.isnan(ymax) else max(ymax, py)
+        if behind:
+            xmin, xmax, ymin, ymax = 0.0, w, 0.0, h
+        x0[i] = _clip_int(np.floor(xmin) - 1, w)
+        x1[i] = _clip_int(np.ceil(xmax) + 1, w)
+        y0[i] = _clip_int(np.floor(ymin) - 1, h)
+        y1[i] = _clip_int(np.ceil(ymax) + 1, h)
+        if empty or all_behind:
+            x1[i] = x0[i]
+    return x0, x1, y0, y1
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
+    """Per primitive: the hull polygon clipped to ``planes`` (rows ``(n, offset)``: keep
+    ``x . n >= offset``; Sutherland-Hodgman as ``binning.clip_polygons``), projected to
+    pixels, and its first candidate row and row count (as ``binning._polygon_spans``).
+    A primitive not ``live`` (its rectangle is empty) gets no rows; one whose hull is not
+    finite gets its rectangle's rows and ``count = -1``.
+
+    Returns
+    -------
+    px, py : (M, V + 7) float
+    count : (M,) int64
+    r0, nr : (M,) int64
+    """
+    m, v = hull.shape[0], hull.shape[1]
+    vmax = v + planes.shape[0]
+    px = np.zeros((m, vmax))
+    py = np.zeros((m, vmax))
+    count = np.zeros(m, np.int64)
+    r0 = np.zeros(m, np.int64)
+    nr = np.zeros(m, np.int64)
+    a = np.empty((vmax, 3))
+    b = np.empty((vmax, 3))
+    for i in range(m):
+        if not live[i]:
+            continue
+        if not np.all(np.isfinite(hull[i])):
+            count[i] = -1
+            r0[i] = y0[i]
+            nr[i] = y1[i] - y0[i]
+            continue
+        n = v
+        for j in range(v):
+            for c in range(3):
+                a[j, c] = hull[i, j, c]
+        for k in range(planes.shape[0]):
+            inside = True
+            for j in range(n):
+                if (a[j, 0] * planes[k, 0] + a[j, 1] * planes[k, 1] + a[j, 2] * planes[k, 2]
+                        - planes[k, 3]) < 0:
+                    inside = False
+            if inside:  # the usual case: nothing to clip
+                continue
+            out = 0
+            for j in range(n):
+                jn = j + 1 if j + 1 < n else 0
+                dj = (a[j, 0] * planes[k, 0] + a[j, 1] * planes[k, 1] + a[j, 2] * planes[k, 2]
+                      - planes[k, 3])
+                dn = (a[jn, 0] * planes[k, 0] + a[jn, 1] * planes[k, 1]
+                      + a[jn, 2] * planes[k, 2] - planes[k, 3])
+                if dj >= 0:
+                    b[out] = a[j]
+                    out += 1
+                if (dj >= 0) != (dn >= 0):
+                    f = dj / (dj - dn)
+                    for c in range(3):
+                        b[out, c] = a[j, c] + f * (a[jn, c] - a[j, c])
+                    out += 1
+            n = out
+            for j in range(n):
+                for c in range(3):
+                    a[j, c] = b[j, c]
+            if n == 0:
+                break
+        count[i] = n
+        if n == 0:
+            continue
+        ymin, ymax = np.inf, -np.inf
+        for j in range(n):
+            px[i, j], py[i, j], _ = _project(a[j, 0], a[j, 1], a[j, 2], cam)
+            ymin = min(ymin, py[i, j])
+            ymax = max(ymax, py[i, j])
+        lo = max(np.floor(ymin - _SPAN_MARGIN), y0[i])
+        hi = min(np.floor(ymax + _SPAN_MARGIN) + 1, y1[i])
+        r0[i] = int(lo)
+        nr[i] = max(int(hi) - int(lo), 0)
+    return px, py, count, r0, nr
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - compiled
+    """Per-row column spans ``[c0, c1)`` of the projected polygons of :func:`_clip_project`
+    (each polygon edge clipped to the row's strip widened by ``_SPAN_MARGIN``, as
+    ``binning._polygon_spans``), primitive-major then by row; empty spans are dropped.
+
+    Returns
+    -------
+    n : int
+    prim, row, c0, c1 : (total,) int64
+        The first ``n`` entries.
+    """
+    o_prim = np.empty(total, np.int64)
+    o_row = np.empty(total, np.int64)
+    o_c0 = np.empty(total, np.int64)
+    o_c1 = np.empty(total, np.int64)
+    n = _row_spans_into(px, py, count, r0, nr, x0, x1, 0, o_prim, o_row, o_c0, o_c1, 0)
+    return n, o_prim, o_row, o_c0, o_c1
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o_c1,
+                    n):  # pragma: no cover - compiled
+    """:func:`_row_spans` written to the given arrays from entry ``n``, primitive ``i`` named
+    ``p_off + i``; returns the entry after the last one written."""
+    big = 1e30
+    inv_dy = np.empty(px.shape[1])  # per edge: the same for every row of the primitive
+    for i in range(px.shape[0]):
+        cnt = count[i]
+        for j in range(max(cnt, 0) if nr[i] > 0 else 0):
+            jn = j + 1 if j + 1 < cnt else 0
+            inv_dy[j] = 1.0 / (py[i, jn] - py[i, j])
+        for row in range(r0[i], r0[i] + nr[i]):
+            if cnt < 0:  # no finite hull: the rectangle
+                c0, c1 = x0[i], x1[i]
+            else:
+                lo_y = row - _SPAN_MARGIN
+                hi_y = row + 1 + _SPAN_MARGIN
+                xmin, xmax = big, -big
+                for j in range(cnt):
+                    jn = j + 1 if j + 1 < cnt else 0
+                    xa, ya, xb, yb = px[i, j], py[i, j], px[i, jn], py[i, jn]
+                    dy = yb - ya
+                    if dy == 0:
+                        t_lo, t_hi = 0.0, 1.0
+                        hit = ya >= lo_y and ya <= hi_y
+                    else:
+                        ta = (lo_y - ya) * inv_dy[j]
+                        tb = (hi_y - ya) * inv_dy[j]
+                        t_lo = max(min(ta, tb), 0.0)
+                        t_hi = min(max(ta, tb), 1.0)
+                        hit = t_lo <= t_hi
+                    if hit:
+                        xl = xa + t_lo * (xb - xa)
+                        xh = xa + t_hi * (xb - xa)
+                        xmin = min(xmin, xl, xh)
+                        xmax = max(xmax, xl, xh)
+                if xmin > xmax:
+                    continue
+                c0 = int(max(np.floor(xmin - _SPAN_MARGIN), x0[i]))
+                c1 = int(min(np.floor(xmax + _SPAN_MARGIN) + 1, x1[i]))
+            if c1 > c0:
+                o_prim[n] = p_off + i
+                o_row[n] = row
+                o_c0[n] = c0
+                o_c1[n] = c1
+                n += 1
+    return n
+
+
+def _camera_vector(cam) -> np.ndarray:
+    """(16,) float: position, forward, right, image-up, ``tan(fov_y / 2)``, aspect, width,
+    height (what the compiled projection reads)."""
+    th = float(np.tan(np.radians(cam.fov_y) / 2.0))
+    return np.concatenate([np.asarray(cam.position, float), np.asarray(cam.forward, float),
+                           np.asarray(cam.right, float), np.asarray(cam.image_up, float),
+                           [th, cam.width / cam.height, cam.width, cam.height]])
+
+
+#: Non-empty once the threaded path's kernel (:func:`_row_spans_into`) is loaded in this
+#: process.
+_WARM: list = []
+
+#: Primitives from which :func:`hull_spans` is shared among threads (~1 us each).
+_THREADED_MIN_PRIMS = 2000
+
+
+def hull_spans(cam, lo, hi, hull, box):
+    """Candidate pixel spans ``(prim, row, c0, c1)`` of every primitive: what
+    ``binning.screen_rects`` + ``binning._spans`` give (hull polygons clipped to the box and
+    the near plane, within the screen rectangles of ``[lo, hi]``), in compiled loops.
+
+    Many primitives are cut into consecutive pieces that numba's threads clip and project,
+    then write the spans of, in primitive order (each primitive's spans depend on it alone):
+    the same spans for any thread count."""
+    bmin, bmax = (np.asarray(b, float) for b in box)
+    fwd = np.asarray(cam.forward, float)
+    eye = np.eye(3)
+    planes = np.array([row for ax in range(3)
+                       for row in (np.append(eye[ax], bmin[ax]), np.append(-eye[ax], -bmax[ax]))]
+                      + [np.append(fwd, float(fwd @ np.asarray(cam.position, float)) + _NEAR)])
+    camv = _camera_vector(cam)
+    c = np.ascontiguousarray
+    lo, hi, hull = c(lo, float), c(hi, float), c(hull, float)
+    # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored
+    rects = None if np.isfinite(lo).all() and np.isfinite(hi).all() else screen_rects(cam, lo,
+                                                                                        hi)
+    m = lo.shape[0]
+    threads = thread_count() if m >= _THREADED_MIN_PRIMS else 1
+    if threads <= 1:
+        x0, x1, y0, y1 = rects if rects is not None else _screen_rects(lo, hi, camv)
+        live = (x1 > x0) & (y1 > y0)
+        px, py, count, r0, nr = _clip_project(hull, live, planes, camv, x0, x1, y0, y1)
+        n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
+        if not _WARM:  # load the threaded path's kernel now (render.warm_up's pass)
+            _row_spans_into(px[:0], py[:0], count[:0], r0[:0], nr[:0], x0[:0], x1[:0], 0,
+                            prim, row, c0, c1, n)
+            _WARM.append(True)
+        return prim[:n], row[:n], c0[:n], c1[:n]
+    cut = np.linspace(0, m, threads * PIECES_PER_THREAD + 1).astype(np.int64).tolist()
+    parts = [None] * (len(cut) - 1)
+
+    def project(j):  # screen rectangles, clipped and projected hulls, rows per primitive
+        a, b = cut[j], cut[j + 1]
+        x0, x1, y0, y1 = ((c(r[a:b]) for r in rects) if rects is not None
+                          else _screen_rects(lo[a:b], hi[a:b], camv))
+        live = (x1 > x0) & (y1 > y0)
+        parts[j] = (x0, x1, *_clip_project(hull[a:b], live, planes, camv, x0, x1, y0, y1))
+
+    on_threads(project, len(parts), threads)
+    # Each piece writes from the first row it could fill (its rows before it), then the
+    # pieces close up in order: the spans of one thread, in as much memory.
+    at = np.cumsum([0] + [int(pp[-1].sum()) for pp in parts])
+    out = [np.empty(int(at[-1]), np.int64) for _ in range(4)]
+    end = np.zeros(len(parts), np.int64)
+
+    def fill(j):
+        x0, x1, px, py, count, r0, nr = parts[j]
+        end[j] = _row_spans_into(px, py, count, r0, nr, x0, x1, cut[j], *out, at[j])
+
+    on_threads(fill, len(parts), threads)
+    n = 0
+    for j in range(len(parts)):
+        k = int(end[j] - at[j])
+        if at[j] != n:
+            for o in out:
+                o[n:n + k] = o[at[j]:at[j] + k]  # numpy copies overlapping slices safely
+        n += k
+    return tuple(o[:n] for o in out)

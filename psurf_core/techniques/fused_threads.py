@@ -1,0 +1,119 @@
+"""Threads for the fused kernels: how many to use and the helper threads that run the pieces.
+
+:func:`thread_count` is numba's thread count (``numba.set_num_threads``,
+``NUMBA_NUM_THREADS``; 1 in pass-pool workers, which already fill the cores), at most the cores
+other processes leave idle (:class:`_OtherLoad`). :func:`on_threads` hands numbered pieces of
+work to this thread and to shared helper threads (the compiled kernels release the GIL). The
+callers (:mod:`.planes_fused`, :mod:`.fused_spans`) cut their work so that the result does not
+depend on which thread ran which piece: the thread count changes the time, never the image."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+from numba import get_num_threads
+
+#: Pieces per thread a shared job is cut into (a chunk: equal candidate pairs each; hull
+#: spans: equal primitives each), handed out in order to whichever thread is free: a thread
+#: that loses its core to another process does not hold the others back by more than one
+#: piece.
+PIECES_PER_THREAD = 4
+
+
+class _OtherLoad:
+    """Cores that other processes kept busy lately (Linux ``/proc/stat``, minus this process's
+    own CPU time), so that threads are used only where a core is free.
+
+    On a machine whose cores are taken by other work a second thread cannot gain: it waits in
+    the run queue while holding a piece the first thread then waits for (measured on a
+    2-core machine with three other busy processes: 2 threads 20% slower than 1). The
+    estimate is refreshed at most every ``_LOAD_REFRESH`` seconds; where ``/proc/stat`` is
+    missing it is 0 (all of numba's threads are used). It only chooses the thread count,
+    which changes no result.
+    """
+
+    def __init__(self):
+        self.last = None  # (monotonic s, all CPUs' busy s, this process's CPU s)
+        self.others = 0.0
+        self.lock = threading.Lock()
+
+    def __call__(self) -> float:
+        now = time.monotonic()
+        with self.lock:
+            if self.last is not None and now - self.last[0] < _LOAD_REFRESH:
+                return self.others
+            try:
+                with open("/proc/stat") as f:
+                    ticks = [int(x) for x in f.readline().split()[1:]]
+            except (OSError, ValueError):
+                return 0.0
+            # user nice system idle iowait irq softirq steal: all but idle and iowait are
+            # taken (steal: by other virtual machines).
+            busy = (sum(ticks[:8]) - ticks[3] - ticks[4]) / os.sysconf("SC_CLK_TCK")
+            t = os.times()
+            own = t.user + t.system
+            if self.last is not None:
+                dt = now - self.last[0]
+                self.others = max(0.0, (busy - self.last[1] - (own - self.last[2])) / dt)
+            self.last = (now, busy, own)
+            return self.others
+
+
+#: Seconds between two readings of :class:`_OtherLoad`.
+_LOAD_REFRESH = 0.5
+
+_OTHER_LOAD = _OtherLoad()
+
+
+def thread_count() -> int:
+    """Threads for a large chunk: numba's thread count (``numba.set_num_threads``,
+    ``NUMBA_NUM_THREADS``), at most the cores other processes leave free (at least 1)."""
+    n = get_num_threads()
+    if n > 1:
+        free = (os.cpu_count() or 1) - _OTHER_LOAD()
+        n = max(1, min(n, int(free + 0.5)))
+    return n
+
+
+#: Helper threads of :func:`on_threads` (started on first use, shared by all callers).
+_HELPERS: dict[int, ThreadPoolExecutor] = {}
+# A forked child has none of the parent's threads: its pools would never run a task.
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_HELPERS.clear)
+
+
+def on_threads(fn, n: int, threads: int) -> None:
+    """``fn(j)`` for ``j = 0 .. n - 1`` on ``threads`` threads (this one and ``threads - 1``
+    helpers), each taking the next ``j`` when free. An exception (Ctrl-C included) stops the
+    handing out; the helpers finish the item they hold, then it is re-raised."""
+    if threads <= 1:
+        for j in range(n):
+            fn(j)
+        return
+    pool = _HELPERS.get(threads - 1)
+    if pool is None:
+        pool = _HELPERS[threads - 1] = ThreadPoolExecutor(threads - 1, "psurf-planes")
+    items = iter(range(n))
+    lock = threading.Lock()
+    stop = []
+
+    def work():
+        while not stop:
+            with lock:
+                j = next(items, None)
+            if j is None:
+                return
+            fn(j)
+
+    helpers = [pool.submit(work) for _ in range(threads - 1)]
+    try:
+        work()
+    except BaseException:
+        stop.append(True)
+        raise
+    finally:
+        for f in helpers:
+            f.result()
