@@ -121,7 +121,6 @@ def photon_pass(
     group.
     """
     out = np.zeros((len(rays), 3))
-    box = (scene.medium.bounds_min, scene.medium.bounds_max)
     n_batches = -(-settings.photons // PHOTON_BATCH)
     batch_ss = photon_ss.spawn(n_batches)
     for b in range(n_batches):
@@ -140,7 +139,7 @@ def photon_pass(
                 # (with the same data, so MIS weights reconstruct them) and values as the stages.
                 chunks = tech.fused_pass(prims, paths, rays, ctx)
                 if chunks is None:
-                    chunks = _stage_chunks(tech, prims, paths, rays, ctx, settings, box)
+                    chunks = stage_chunks(tech, prims, paths, rays, ctx)
                 for hits, raw in chunks:
                     if len(hits) == 0:
                         continue
@@ -156,10 +155,13 @@ def photon_pass(
     return out
 
 
-def _stage_chunks(tech, prims, paths, rays, ctx, settings, box):
-    """``(Hits, per-photon values)`` chunks of ``tech`` by binning -> intersect -> evaluate."""
+def stage_chunks(tech: Technique, prims, paths, rays: Rays, ctx: PassContext):
+    """``(Hits, per-photon values (H, 3))`` chunks of ``tech`` by the stages: binning ->
+    :meth:`~Technique.intersect` -> :meth:`~Technique.evaluate`, at most ``ctx.max_pairs``
+    candidate pairs at a time. The reference the fused kernels are checked against."""
+    box = (ctx.scene.medium.bounds_min, ctx.scene.medium.bounds_max)
     for ray, prim in candidate_pairs(ctx.scene.camera, rays, prims.lo, prims.hi,
-                                     settings.max_pairs, prims.hull, box):
+                                     ctx.max_pairs, prims.hull, box):
         hits = tech.intersect(prims, rays, ray, prim, ctx)
         if len(hits):
             yield hits, tech.evaluate(hits, prims, paths, rays, ctx)

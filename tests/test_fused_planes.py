@@ -10,11 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from psurf_core.binning import candidate_pairs
 from psurf_core.camera import camera_rays
 from psurf_core.estimators import parse_estimator
 from psurf_core.geometry import blockers_of
-from psurf_core.render import RenderSettings, render_pass
+from psurf_core.render import RenderSettings, render_pass, stage_chunks
 from psurf_core.scene_io import load_scene
 from psurf_core.techniques.base import PassContext
 from psurf_core.techniques.planes import PhotonPlane
@@ -24,14 +23,7 @@ SCENES = sorted((Path(__file__).resolve().parent.parent / "scenes").glob("*.toml
 
 
 def _stage(tech, prims, paths, rays, ctx):
-    box = (ctx.scene.medium.bounds_min, ctx.scene.medium.bounds_max)
-    out = []
-    for ray, prim in candidate_pairs(ctx.scene.camera, rays, prims.lo, prims.hi,
-                                     ctx.max_pairs, prims.hull, box):
-        hits = tech.intersect(prims, rays, ray, prim, ctx)
-        if len(hits):
-            out.append((hits, tech.evaluate(hits, prims, paths, rays, ctx)))
-    return out
+    return list(stage_chunks(tech, prims, paths, rays, ctx))
 
 
 def _flat(chunks):

@@ -12,11 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from psurf_core.binning import candidate_pairs
 from psurf_core.camera import camera_rays
 from psurf_core.estimators import parse_estimator
 from psurf_core.geometry import blockers_of
-from psurf_core.render import RenderSettings, render_pass
+from psurf_core.render import RenderSettings, render_pass, stage_chunks
 from psurf_core.scene_io import load_scene
 from psurf_core.techniques import get_technique
 from psurf_core.techniques.base import PassContext, Technique
@@ -27,14 +26,7 @@ NAMES = ["cone", "cylinder", "plane-t1t3", "plane-t2t3"]
 
 
 def _stage(tech, prims, paths, rays, ctx):
-    box = (ctx.scene.medium.bounds_min, ctx.scene.medium.bounds_max)
-    out = []
-    for ray, prim in candidate_pairs(ctx.scene.camera, rays, prims.lo, prims.hi,
-                                     ctx.max_pairs, prims.hull, box):
-        hits = tech.intersect(prims, rays, ray, prim, ctx)
-        if len(hits):
-            out.append((hits, tech.evaluate(hits, prims, paths, rays, ctx)))
-    return out
+    return list(stage_chunks(tech, prims, paths, rays, ctx))
 
 
 def _flat(chunks):
