@@ -134,6 +134,18 @@ def _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, cb, st0, st1, st2):  # 
     return 1 if (st0 == DEFER or st1 == DEFER or st2 == DEFER) else 0
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _emit_axis(o_s, o_t, o_w, o_ndp, n, s, t, w0, w1, w2, ndp):  # pragma: no cover - compiled
+    """Row ``n`` of a cone / cylinder hit's geometry: ``s``, the swept length ``t``, the
+    reconstructed direction ``w`` and ``|n . psi|`` (the stage path's ``data`` fields)."""
+    o_s[n] = s
+    o_t[n] = t
+    o_w[n, 0] = w0
+    o_w[n, 1] = w1
+    o_w[n, 2] = w2
+    o_ndp[n] = ndp
+
+
 @njit(cache=True, error_model="numpy")
 def _cone_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                  cap):  # pragma: no cover - compiled
@@ -195,12 +207,7 @@ def _cone_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                         scal = scal / ndp
                     n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 8, st0,
                                      CLEAR, CLEAR)
-                    o_s[n] = s
-                    o_t[n] = t1
-                    o_w[n, 0] = e0
-                    o_w[n, 1] = e1
-                    o_w[n, 2] = e2
-                    o_ndp[n] = ndp
+                    _emit_axis(o_s, o_t, o_w, o_ndp, n, s, t1, e0, e1, e2, ndp)
                     n += 1
     return n, n_defer, o_ray, o_prim, o_s, o_t, o_w, o_ndp, o_val, o_st
 
@@ -279,12 +286,7 @@ def _cylinder_kernel(spans, width, order, pix, rt, pt, med, blk, short,
                         scal = scal / ndp
                     n_defer += _emit(o_ray, o_prim, o_val, o_st, n, r, p, scal, pt, 11, st0,
                                      st1, CLEAR)
-                    o_s[n] = s
-                    o_t[n] = t2
-                    o_w[n, 0] = m0
-                    o_w[n, 1] = m1
-                    o_w[n, 2] = m2
-                    o_ndp[n] = ndp
+                    _emit_axis(o_s, o_t, o_w, o_ndp, n, s, t2, m0, m1, m2, ndp)
                     n += 1
     return n, n_defer, o_ray, o_prim, o_s, o_t, o_w, o_ndp, o_val, o_st
 
