@@ -17,7 +17,6 @@ queued and re-raises.
 from __future__ import annotations
 
 import multiprocessing
-import os
 import signal
 import time
 from collections.abc import Callable
@@ -33,7 +32,7 @@ from .scene import Scene
 __all__ = ["pass_pool", "render_parallel", "warm_pool"]
 
 
-def _ignore_sigint() -> None:
+def _worker_init() -> None:
     """Worker start-up: ignore SIGINT (Ctrl-C reaches the parent only) and run the compiled
     kernels on one thread, since the pool's processes already fill the cores (numba would
     otherwise start ``NUMBA_NUM_THREADS`` per worker)."""
@@ -50,7 +49,7 @@ def pass_pool(jobs: int) -> ProcessPoolExecutor:
         raise ValueError(f"the number of jobs must be >= 1, got {jobs}")
     return ProcessPoolExecutor(max_workers=int(jobs),
                                mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_ignore_sigint)
+                               initializer=_worker_init)
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:
@@ -67,11 +66,10 @@ def _pass_task(scene: Scene, spec: str, pass_index: int, seed: int,
     return render_pass(scene, parse_estimator(spec, scene), pass_index, seed, settings)
 
 
-def _warm_task(scene: Scene, spec: str, settings: RenderSettings) -> int:
+def _warm_task(scene: Scene, spec: str, settings: RenderSettings) -> None:
     """Run in a worker: :func:`~psurf_core.render.warm_up` (imports, compiled kernels)."""
     warm_up(scene, parse_estimator(spec, scene), settings)
     time.sleep(0.05)  # hold this worker so the next warm-up task goes to another one
-    return os.getpid()
 
 
 def warm_pool(pool: Executor, scene: Scene, spec: str, settings: RenderSettings) -> None:
