@@ -51,7 +51,7 @@ class Estimator:
         return any(t.kernel_dim > 0 for t in self.techniques)
 
 
-#: Preset name -> callable(scene) -> Estimator; filled by the MIS module when it is present.
+#: Preset name -> callable(spec, scene) -> Estimator (:func:`register_presets`).
 PRESETS: dict = {}
 
 
@@ -115,7 +115,7 @@ def _parse(spec: str, scene: Scene | None) -> Estimator:
     if spec.endswith("-short") and spec[: -len("-short")] in PRESETS:
         raise UnknownTechnique(f"preset '{spec[:-6]}' has no short variant")
     if spec.startswith(("mis:", "mis-power:")):
-        return _mis.parse_mis(spec, scene)
+        return parse_mis(spec, scene)
     tech = get_technique(spec)
     if scene is not None and not any(tech.applies_to(lt) for lt in scene.lights):
         kinds = sorted({lt.kind for lt in scene.lights})
@@ -146,5 +146,83 @@ def _without(spec: str, scene: Scene | None) -> Estimator:
     return replace(base, spec=spec, groups=groups)
 
 
-# The MIS module registers the presets; imported last because it builds on this module.
-from . import mis as _mis  # noqa: E402,F401
+# ------------------------------------------------------------------------- MIS sets and presets
+def _check_member(name: str) -> Technique:
+    base = name[:-6] if name.endswith("-short") else name
+    if base in PRESETS or name in PRESETS:
+        raise UnknownTechnique(f"MIS member '{name}' is a preset; list techniques instead")
+    tech = get_technique(name)
+    entry = REGISTRY.get(base)
+    if entry is not None and not entry.mis_ok:
+        raise UnknownTechnique(f"MIS member '{name}' is a kernel baseline; MIS combines "
+                               "unbiased photon-surface techniques only")
+    return tech
+
+
+def _applicable(group, scene: Scene | None, spec: str):
+    """Drop members that apply to no light of ``scene`` (with a warning)."""
+    if scene is None:
+        return group, ()
+    kept, notes = [], []
+    for t in group:
+        if any(t.applies_to(lt) for lt in scene.lights):
+            kept.append(t)
+        else:
+            notes.append(f"MIS member '{t.name}' applies to no light of {scene.path}; dropped")
+    if not kept:
+        raise SceneError(f"{scene.path}: estimator '{spec}' has no member that applies to "
+                         "a light of this scene")
+    return kept, tuple(notes)
+
+
+def parse_mis(spec: str, scene: Scene | None = None) -> Estimator:
+    """Parse ``mis:A+B+...`` or ``mis-power:A+B+...``."""
+    head, _, body = spec.partition(":")
+    weighting = "power" if head == "mis-power" else "balance"
+    names = [n.strip() for n in body.split("+")]
+    if not body.strip() or any(not n for n in names):
+        raise UnknownTechnique(f"malformed MIS spec '{spec}': expected {head}:A+B+...")
+    if len(set(names)) != len(names):
+        raise UnknownTechnique(f"malformed MIS spec '{spec}': a member is listed twice")
+    group = [_check_member(n) for n in names]
+    group, notes = _applicable(group, scene, spec)
+    return Estimator(spec, groups=(tuple(group),), weighting=weighting, notes=notes)
+
+
+def _only(tech: Technique, kinds: tuple) -> Technique:
+    """Restrict a technique instance to some light kinds (a preset's per-light choice)."""
+    tech.lights = tuple(k for k in tech.lights if k in kinds)
+    return tech
+
+
+def _paper_single():
+    return (*(get_technique(n) for n in ("ss-plane-uv", "ss-plane-ut", "ss-plane-vt")),
+            get_technique("ss-cone"), get_technique("ss-sphere"),
+            _only(get_technique("ss-disk"), ("point",)))
+
+
+def _paper_multi():
+    return tuple(get_technique(n) for n in
+                 ("plane-t1t2", "plane-t1t3", "plane-t2t3", "cone", "cylinder"))
+
+
+def _preset(groups_fn):
+    def build(spec: str, scene: Scene | None) -> Estimator:
+        groups, notes = [], []
+        for g in groups_fn():
+            kept, n = _applicable(list(g), scene, spec) if scene is not None else (list(g), ())
+            groups.append(tuple(kept))
+            notes.extend(n)
+        return Estimator(spec, groups=tuple(groups), weighting="balance", notes=tuple(notes))
+
+    return build
+
+
+def register_presets() -> None:
+    """Install the paper's presets (all long techniques, balance heuristic)."""
+    PRESETS["paper-single"] = _preset(lambda: [_paper_single()])
+    PRESETS["paper-multi"] = _preset(lambda: [_paper_multi()])
+    PRESETS["paper-full"] = _preset(lambda: [_paper_single(), _paper_multi()])
+
+
+register_presets()

@@ -68,6 +68,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .estimators import Estimator, parse_estimator
+from .metrics import RELMSE_EPS, relmse, relmse_map, var_relmse
 from .render import RenderSettings, render
 from .scene import Scene, SceneError
 
@@ -93,49 +94,12 @@ __all__ = [
     "write_variance_png",
 ]
 
-#: Weight of the squared image mean in the relMSE denominator.
-RELMSE_EPS = 1e-2
-
 #: Points kept per run in the error-vs-time curve of ``compare.json``.
 CURVE_POINTS = 64
 
 #: Default reference time: this many times the total time of one run of every estimator.
 REFERENCE_TIME_FACTOR = 2.0
 
-
-# --------------------------------------------------------------------------- error metrics
-
-
-def _den(ref: np.ndarray, eps: float) -> np.ndarray:
-    ref = np.asarray(ref, dtype=np.float64)
-    m = float(np.mean(ref))
-    return ref**2 + eps * m * m
-
-
-def relmse_map(img: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> np.ndarray:
-    """(H, W) per-pixel relative squared error, averaged over channels.
-
-    ``(img - ref)^2 / (ref^2 + eps * mean(ref)^2)``; 0 where both the numerator and the
-    denominator are 0 (an all-black reference and image).
-    """
-    img = np.asarray(img, dtype=np.float64)
-    num = (img - np.asarray(ref, dtype=np.float64)) ** 2
-    den = _den(ref, eps)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num > 0, np.inf, 0.0))
-    return r.mean(axis=-1)
-
-
-def relmse(img: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> float:
-    """Scalar relMSE: the mean of :func:`relmse_map` (module docstring)."""
-    return float(np.mean(relmse_map(img, ref, eps)))
-
-
-def _var_relmse(var_of_mean: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> float:
-    den = _den(ref, eps)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(den > 0, var_of_mean / np.where(den > 0, den, 1.0), 0.0)
-    return float(np.mean(r))
 
 
 # --------------------------------------------------------------------------- reference
@@ -172,7 +136,7 @@ class Reference:
         """relMSE that the reference's own noise adds to every estimator's score."""
         if self.var is None or not self.passes:
             return None
-        return _var_relmse(self.var / self.passes, self.mean)
+        return var_relmse(self.var / self.passes, self.mean)
 
 
 def load_reference(path: str, scene: Scene) -> Reference:
@@ -423,7 +387,7 @@ def compare(
                 "mean_variance": mv,
                 "relmse": relmse(res.mean, ref),
                 "load_average": _load(),
-                "relmse_from_variance": _var_relmse(res.var / n, ref) if n >= 2 else
+                "relmse_from_variance": var_relmse(res.var / n, ref) if n >= 2 else
                 float("nan"),
                 "curve": _thin(curve),
             })

@@ -13,19 +13,13 @@ import os
 import numpy as np
 
 from . import images as im
+from .metrics import relmse_map
 from .scene import Scene
 
 
 def _hi(k: int) -> str:
     """``max_scatter`` for display (-1 means unlimited)."""
     return "inf" if k == -1 else str(k)
-
-
-def relmse_map(img, ref, eps):
-    """See :func:`psurf_core.study.relmse_map` (imported lazily: study imports this module)."""
-    from .study import relmse_map as _map
-
-    return _map(img, ref, eps)
 
 
 def _finite(x):

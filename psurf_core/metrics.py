@@ -1,0 +1,44 @@
+"""Error metrics against a reference image: relative MSE per pixel and over the image.
+
+``relMSE = mean over pixels and channels of (I - R)^2 / (R^2 + EPS mean(R)^2)``: the
+``EPS`` term keeps near-black reference pixels from dominating (``psurf_core.study``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Weight of the squared image mean in the relMSE denominator.
+RELMSE_EPS = 1e-2
+
+
+def _den(ref: np.ndarray, eps: float) -> np.ndarray:
+    ref = np.asarray(ref, dtype=np.float64)
+    m = float(np.mean(ref))
+    return ref**2 + eps * m * m
+
+
+def relmse_map(img: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> np.ndarray:
+    """(H, W) per-pixel relative squared error, averaged over channels.
+
+    ``(img - ref)^2 / (ref^2 + eps * mean(ref)^2)``; 0 where both the numerator and the
+    denominator are 0 (an all-black reference and image).
+    """
+    img = np.asarray(img, dtype=np.float64)
+    num = (img - np.asarray(ref, dtype=np.float64)) ** 2
+    den = _den(ref, eps)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num > 0, np.inf, 0.0))
+    return r.mean(axis=-1)
+
+
+def relmse(img: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> float:
+    """Scalar relMSE: the mean of :func:`relmse_map` (module docstring)."""
+    return float(np.mean(relmse_map(img, ref, eps)))
+
+
+def var_relmse(var_of_mean: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> float:
+    den = _den(ref, eps)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(den > 0, var_of_mean / np.where(den > 0, den, 1.0), 0.0)
+    return float(np.mean(r))
