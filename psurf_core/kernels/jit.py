@@ -1,0 +1,83 @@
+"""How psurf compiles: the decorators every compiled function uses, the compiled twin of a
+numpy function, and Ctrl-C kept a ``KeyboardInterrupt`` across a compiled call.
+
+* :func:`kernel`: a compiled entry point (called from Python), cached on disk by its sources
+  (:mod:`.cache`);
+* :func:`inline`: a scalar helper inlined into the kernels that call it;
+* :func:`twin`: the compiled twin of a numpy function. The numpy function keeps its name and
+  stays what Python calls; compiled code calling the same name gets the twin (a numba
+  ``overload``), so a formula has one name in both worlds and the two implementations sit
+  side by side in the family's module, where a test holds them equal.
+"""
+
+from __future__ import annotations
+
+import inspect as _inspect
+from contextlib import contextmanager
+
+from numba import njit
+from numba.core.extending import overload
+
+from .cache import cached
+
+#: Options of every compiled function: numpy's floating-point model (a division by zero is
+#: inf or NaN, as in the numpy reference, not an exception).
+OPTIONS = dict(error_model="numpy")
+
+
+def kernel(fn=None, **options):
+    """``@kernel`` / ``@kernel(nogil=True)``: compile ``fn`` as a kernel (see module doc)."""
+
+    def deco(f):
+        return cached(njit(cache=False, **OPTIONS, **options)(f))
+
+    return deco(fn) if fn is not None else deco
+
+
+def inline(fn):
+    """``@inline``: a scalar helper, inlined into its compiled callers (numba IR inlining:
+    every call site gets a copy, so LLVM optimises it with its caller)."""
+    return njit(cache=False, inline="always", **OPTIONS)(fn)
+
+
+def twin(numpy_function):
+    """``@twin(f)``: the decorated scalar function is what compiled code runs when it calls
+    ``f``. It must take the same arguments as ``f`` (numba checks the names)."""
+
+    def deco(impl):
+        def typer(*args):
+            return impl
+
+        typer.__signature__ = _inspect.signature(numpy_function)
+        overload(numpy_function, inline="always", jit_options=OPTIONS)(typer)
+        return impl
+
+    return deco
+
+
+def interrupted(e: BaseException | None) -> bool:
+    """Was ``e`` caused (at any depth of its cause / context chain) by a KeyboardInterrupt?"""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
+
+
+@contextmanager
+def ctrl_c_kept():
+    """Run a compiled call with Ctrl-C kept a KeyboardInterrupt.
+
+    A SIGINT whose Python handler runs while a compiled function returns (numba boxing its
+    result) surfaces as ``SystemError: ... returned a result with an exception set``, caused
+    by the KeyboardInterrupt; callers (``render --checkpoint``: save and exit 130) must see
+    the Ctrl-C itself.
+    """
+    try:
+        yield
+    except SystemError as e:
+        if interrupted(e):
+            raise KeyboardInterrupt from None
+        raise
