@@ -32,6 +32,7 @@ from numba import njit
 
 from .compiled import ctrl_c_kept
 from .path_record import KIND_CODE, photon_table
+from .records import flat
 from .sampling import INV_4PI
 from .techniques.cones import PhotonCone
 from .techniques.cylinders import PhotonCylinder
@@ -141,7 +142,7 @@ def fast_weights(tech, group, weighting, hits, prims, paths, rays, ctx,
         _weights_kernel(code, me, c(hits.ray, i64), c(hits.prim, i64), c(hits.s, float),
                         r0, r1, wv, c(prims.photon, i64), c(prims.K, i64),
                         c(paths.x, float), c(paths.w, float), c(paths.t, float),
-                        photon_table(paths, ctx.scene), c(rays.o, float), c(rays.d, float),
+                        flat(photon_table(paths, ctx.scene)), c(rays.o, float), c(rays.d, float),
                         mem, par, out)
     return out
 

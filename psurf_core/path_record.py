@@ -13,25 +13,32 @@ every technique of that scatter count shares:
 * ``K = 2``: the light-position pdf is dropped (``x2`` is on the light);
 * ``K = 1``: nothing is dropped (the single-scattering table of section 3.2 as written).
 
-:class:`Pdfs` gives the elementary pdfs on a record so that every technique's ``Q`` is one
-line from the spec's tables.
+``rec.pdf`` (:class:`~psurf_core.pdfs.Pdfs`) gives the elementary pdfs on a record so that
+every technique's ``Q`` is one line from the spec's tables.
+
+The compiled twin of a record is :class:`PathRow` (one hit, vectors as 3-tuples, its pdfs
+kept with it in ``row.pdf``): :func:`photon_row` is :func:`photon_record` for one photon,
+and the ``with_*`` setters are :meth:`PathRecord.with_` for the fields a technique
+replaces, updating the pdfs that depend on them.
 """
 
 from __future__ import annotations
 
 import weakref
-from dataclasses import dataclass, fields, replace
-from functools import cached_property
+from dataclasses import dataclass, field, fields, replace
+from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from .compiled import ctrl_c_kept
-from .sampling import INV_4PI, phase_value
+from .kernels.jit import ctrl_c_kept, inline, kernel
+from .kernels.vec import vec
+from .pdfs import KIND_CODE, Pdfs, PdfsRow, direction_pdf, flight_pdf, position_pdfs
+from .records import Vec, flat, load, table
+from .records import replace as set_field
 from .scene import AreaLight, MeshLight, PointLight, Scene
 
-KIND_CODE = {"point": 0, "area": 1, "mesh": 2}
-
+__all__ = ["KIND_CODE", "PathRecord", "PathRow", "Pdfs", "PhotonLight", "light_kinds",
+           "photon_record", "photon_row", "photon_table"]
 
 @dataclass
 class PathRecord:
@@ -81,6 +88,7 @@ class PathRecord:
     t1: np.ndarray
     psi: np.ndarray
     s: np.ndarray
+    scene: Scene | None = field(default=None, repr=False, compare=False)
 
     def __len__(self) -> int:
         return self.K.shape[0]
@@ -89,7 +97,18 @@ class PathRecord:
         return replace(self, **changes)
 
     def select(self, idx) -> PathRecord:
-        return PathRecord(**{f.name: getattr(self, f.name)[idx] for f in fields(self)})
+        return PathRecord(**{f.name: getattr(self, f.name)[idx] for f in fields(self)
+                             if f.name != "scene"}, scene=self.scene)
+
+    @property
+    def pdf(self) -> Pdfs:
+        """The elementary pdfs on this record (computed on first use, then kept)."""
+        return Pdfs(self, self.scene)
+
+    @property
+    def st(self) -> float:
+        """``sigma_t`` of the scene's medium (1 / scene units)."""
+        return self.scene.medium.sigma_t
 
     @property
     def A3(self) -> np.ndarray:
@@ -116,24 +135,47 @@ def photon_record(paths, photon: np.ndarray, K: np.ndarray, scene: Scene, rays,
     kind = np.empty(h, np.int64)
     with ctrl_c_kept():
         _gather(photon, K, ray, c(s, float), c(paths.x, float), c(paths.w, float),
-                c(paths.t, float), photon_table(paths, scene), c(rays.o, float),
+                c(paths.t, float), flat(photon_table(paths, scene)), c(rays.o, float),
                 c(rays.d, float), vec, sca, uv, kind)
     return PathRecord(
         K=K, light=paths.light[photon], kind=kind, tri=paths.tri[photon], uv=uv,
         axis=vec[8], eu=vec[9], ev=vec[10], x3=vec[0], x2=vec[1], x1=vec[2], x0=vec[3],
         w3=vec[4], w2=vec[5], w1=vec[6], t3=sca[0], t2=sca[1], t1=sca[2], psi=vec[7],
-        s=s,
+        s=s, scene=scene,
     )
+
+
+class PhotonLight(NamedTuple):
+    """What a photon's light puts into every record of it (a row of :func:`photon_table`).
+
+    Attributes
+    ----------
+    kind : float
+        Light kind code (:data:`KIND_CODE`).
+    pk : float
+        Triangle pmf ``P_k = A_k / A_tot`` (0 unless a mesh light's triangle).
+    u, v : float
+        The photon's light coordinates (parallelogram, or barycentric on its triangle).
+    axis : Vec
+        The point light's axis, or the normal ``n_L`` / ``n_k``.
+    eu, ev : Vec
+        Parallelogram edges, or the triangle's ``v1 - v0, v2 - v0``; zeros for point lights.
+    """
+
+    kind: float
+    pk: float
+    u: float
+    v: float
+    axis: Vec
+    eu: Vec
+    ev: Vec
 
 
 _PHOTON_CACHE: list = []  # [(weakref to paths, scene, table)]: the last paths seen
 
 
-def photon_table(paths, scene: Scene) -> np.ndarray:
-    """(P, 13) float per photon: light kind code (:data:`KIND_CODE`), triangle pmf
-    ``P_k = A_k / A_tot`` (0 unless a mesh light's triangle), ``uv`` (2), light ``axis`` (3),
-    patch edges ``eu``, ``ev`` (3 + 3: parallelogram edges or ``v1 - v0, v2 - v0``, zeros
-    for point lights).
+def photon_table(paths, scene: Scene) -> np.recarray:
+    """(P,) :class:`PhotonLight` records, one per photon.
 
     Kept for the last ``paths`` seen: every chunk of every technique of a batch reads the
     same photons.
@@ -142,26 +184,27 @@ def photon_table(paths, scene: Scene) -> np.ndarray:
         ref, sc, tab = _PHOTON_CACHE[0]
         if ref() is paths and sc is scene:
             return tab
-    tab = np.zeros((len(paths), 13))
-    tab[:, 2:4] = paths.light_uv
-    tab[:, 4:7] = paths.light_normal
+    tab = table(PhotonLight, len(paths))
+    # (fields are written by item: a recarray's attribute assignment of a (3,) field fails)
+    tab["u"], tab["v"] = paths.light_uv[:, 0], paths.light_uv[:, 1]
+    tab["axis"] = paths.light_normal
     for li, lt in enumerate(scene.lights):
         sel = np.flatnonzero(paths.light == li)
-        tab[sel, 0] = KIND_CODE[lt.kind]
+        tab["kind"][sel] = KIND_CODE[lt.kind]
         if isinstance(lt, AreaLight):
-            tab[sel, 7:10], tab[sel, 10:13] = lt.edge_u, lt.edge_v
+            tab["eu"][sel], tab["ev"][sel] = lt.edge_u, lt.edge_v
         elif isinstance(lt, MeshLight):
             tri = paths.tri[sel]
             tr = lt.triangles[tri]
-            tab[sel, 7:10], tab[sel, 10:13] = tr[:, 1] - tr[:, 0], tr[:, 2] - tr[:, 0]
+            tab["eu"][sel], tab["ev"][sel] = tr[:, 1] - tr[:, 0], tr[:, 2] - tr[:, 0]
             ok = tri >= 0
-            tab[sel[ok], 1] = lt.areas[tri[ok]] / lt.area
+            tab["pk"][sel[ok]] = lt.areas[tri[ok]] / lt.area
     _PHOTON_CACHE[:] = [(weakref.ref(paths), scene, tab)]
     return tab
 
 
-@njit(cache=True, error_model="numpy")
-def _gather(photon, K, ray, s, x, w, t, ptab, ray_o, ray_d, vec, sca, uv,
+@kernel
+def _gather(photon, K, ray, s, x, w, t, lights, ray_o, ray_d, vec, sca, uv,
             kind):  # pragma: no cover - compiled
     """Fill :func:`photon_record`'s arrays: ``vec`` (11, H, 3), ``sca`` (3, H), ``uv``
     (H, 2), ``kind`` (H,). Segment ``k`` (``x_k``, ``w_k``, ``t_k``) is tracer index
@@ -182,131 +225,118 @@ def _gather(photon, K, ray, s, x, w, t, ptab, ray_o, ray_d, vec, sca, uv,
                     vec[4 + m, h, a] = nan
                 sca[m, h] = nan
         r = ray[h]
+        lt = load(lights, ph, PhotonLight)
         for a in range(3):
             vec[7, h, a] = ray_d[r, a]
             vec[3, h, a] = ray_o[r, a] + s[h] * ray_d[r, a]
-            vec[8, h, a] = ptab[ph, 4 + a]
-            vec[9, h, a] = ptab[ph, 7 + a]
-            vec[10, h, a] = ptab[ph, 10 + a]
-        uv[h, 0] = ptab[ph, 2]
-        uv[h, 1] = ptab[ph, 3]
-        kind[h] = np.int64(ptab[ph, 0])
-
-
-class Pdfs:
-    """Elementary sampling pdfs evaluated on a record (all (H,) float).
-
-    Computed on first use and kept with the record: every member of an MIS set evaluates
-    its density on the same record, so each pdf is computed once per record, not per member.
-
-    Attributes
-    ----------
-    t1, t2, t3 : free-flight pdfs ``st exp(-st t_k)``.
-    w1, w2 : solid-angle pdfs of ``w_k``: the phase function about ``w_{k+1}``, or the
-        emission pdf when ``x_k`` is the light (``1/(4 pi)`` point, ``cos/pi`` area/mesh).
-    c1, c2 : pdfs of ``cos th_k`` (``2 pi`` times the direction pdf: azimuthal symmetry).
-    ph : ``1 / (2 pi)``, the pdf of any azimuth.
-    uv : joint light-position pdf on the unit square (1) or a triangle (``2 P_k``).
-    u, v : marginal pdfs of ``u`` and ``v`` (1, or ``2 P_k (1 - u)``, ``2 P_k (1 - v)``).
-    """
-
-    def __new__(cls, rec: PathRecord, scene: Scene):
-        cached = rec.__dict__.get("_pdfs")
-        if cached is not None and cached.scene is scene:
-            return cached
-        self = super().__new__(cls)
-        # A weak reference back: a strong one would make a record <-> pdfs cycle, which only
-        # the cyclic garbage collector frees, so every chunk's arrays would pile up.
-        self._rec, self.scene = weakref.ref(rec), scene
-        rec.__dict__["_pdfs"] = self
-        return self
-
-    @property
-    def rec(self) -> PathRecord:
-        return self._rec()
-
-    def _flight(self, t):
-        st = self.scene.medium.sigma_t
-        with np.errstate(invalid="ignore", over="ignore"):
-            return st * np.exp(-st * t)
-
-    @cached_property
-    def t1(self):
-        return self._flight(self.rec.t1)
-
-    @cached_property
-    def t2(self):
-        return self._flight(self.rec.t2)
-
-    @cached_property
-    def t3(self):
-        return self._flight(self.rec.t3)
-
-    @cached_property
-    def w1(self):
-        rec = self.rec
-        return np.where(rec.K == 1, _emission_pdf(rec, rec.w1),
-                        phase_value(_dot(rec.w2, rec.w1), self.scene.medium.phase.g))
-
-    @cached_property
-    def w2(self):
-        rec = self.rec
-        return np.where(rec.K == 2, _emission_pdf(rec, rec.w2),
-                        phase_value(_dot(rec.w3, rec.w2), self.scene.medium.phase.g))
-
-    @cached_property
-    def c1(self):
-        return 2.0 * np.pi * self.w1
-
-    @cached_property
-    def c2(self):
-        return 2.0 * np.pi * self.w2
-
-    @cached_property
-    def ph(self):
-        return np.full(len(self.rec), 1.0 / (2.0 * np.pi))
-
-    @cached_property
-    def _mesh_pk(self):
-        return self.rec.kind == KIND_CODE["mesh"], _triangle_pmf(self.rec, self.scene)
-
-    @cached_property
-    def uv(self):
-        mesh, pk = self._mesh_pk
-        return np.where(mesh, 2.0 * pk, 1.0)
-
-    @cached_property
-    def u(self):
-        mesh, pk = self._mesh_pk
-        return np.where(mesh, 2.0 * pk * (1.0 - self.rec.uv[:, 0]), 1.0)
-
-    @cached_property
-    def v(self):
-        mesh, pk = self._mesh_pk
-        return np.where(mesh, 2.0 * pk * (1.0 - self.rec.uv[:, 1]), 1.0)
-
-
-def _dot(a, b):
-    return np.einsum("ij,ij->i", a, b)
-
-
-def _emission_pdf(rec: PathRecord, w: np.ndarray) -> np.ndarray:
-    """Solid-angle emission pdf of direction ``w`` at the light vertex of each record."""
-    with np.errstate(invalid="ignore"):
-        cos = _dot(rec.axis, w)
-    return np.where(rec.kind == KIND_CODE["point"], INV_4PI, np.clip(cos, 0.0, None) / np.pi)
-
-
-def _triangle_pmf(rec: PathRecord, scene: Scene) -> np.ndarray:
-    """``P_k = A_k / A_tot`` of each record's emitting triangle (0 for other lights)."""
-    out = np.zeros(len(rec))
-    for li, lt in enumerate(scene.lights):
-        if isinstance(lt, MeshLight):
-            sel = (rec.light == li) & (rec.tri >= 0)
-            out[sel] = lt.areas[rec.tri[sel]] / lt.area
-    return out
+            vec[8, h, a] = lt.axis[a]
+            vec[9, h, a] = lt.eu[a]
+            vec[10, h, a] = lt.ev[a]
+        uv[h, 0] = lt.u
+        uv[h, 1] = lt.v
+        kind[h] = np.int64(lt.kind)
 
 
 def light_kinds(scene: Scene) -> set[str]:
     """The kinds of light present in ``scene``."""
     return {lt.kind for lt in scene.lights if isinstance(lt, PointLight | AreaLight | MeshLight)}
+
+
+# ------------------------------------------------------------------------- compiled: one hit
+class PathRow(NamedTuple):
+    """One hit's :class:`PathRecord` (the compiled twin; vectors as 3-tuples), with the
+    fields its pdfs need and the pdfs themselves (``pdf``: :class:`~psurf_core.pdfs.PdfsRow`,
+    :attr:`PathRecord.pdf`'s twin). Fields beyond the light (``K < 3`` for ``w3, t3``) are
+    NaN, as in :class:`PathRecord`."""
+
+    K: int
+    kind: int
+    st: float  # sigma_t (PathRecord.st)
+    g: float  # the phase function's g (the pdfs of w1 and w2 need it)
+    pk: float  # triangle pmf P_k (Pdfs reads it from the scene)
+    uv: tuple[float, float]
+    axis: Vec
+    eu: Vec
+    ev: Vec
+    x1: Vec
+    x0: Vec
+    w3: Vec
+    w2: Vec
+    w1: Vec
+    t3: float
+    t2: float
+    t1: float
+    psi: Vec
+    pdf: PdfsRow
+
+
+@inline
+def _segment(x, w, t, ph, j):
+    """Tracer segment ``j`` of photon ``ph`` (``w``, ``t``), NaN where ``j < 0``."""
+    if j < 0:
+        return (np.nan, np.nan, np.nan), np.nan
+    return vec(w[ph, j]), t[ph, j]
+
+
+@inline
+def photon_row(x, w, t, lights, ph, K, st, g):
+    """:func:`photon_record` of photon ``ph`` at scatter count ``K`` for one hit, before the
+    hit is known (``psi``, ``x0`` zero: :func:`at_hit` sets them). ``x, w, t``:
+    ``PhotonPaths`` arrays; ``lights``: flat :func:`photon_table`."""
+    lt = load(lights, ph, PhotonLight)
+    w3, t3 = _segment(x, w, t, ph, K - 3)
+    w2, t2 = _segment(x, w, t, ph, K - 2)
+    w1, t1 = _segment(x, w, t, ph, K - 1)
+    kind = int(lt.kind)
+    axis = lt.axis
+    p1 = direction_pdf(K, 1, kind, axis, w2, w1, g)
+    p2 = direction_pdf(K, 2, kind, axis, w3, w2, g)
+    puv, pu, pv = position_pdfs(kind, lt.pk, lt.u, lt.v)
+    pdf = PdfsRow(flight_pdf(t1, st), flight_pdf(t2, st), flight_pdf(t3, st), p1, p2,
+                  2.0 * np.pi * p1, puv, pu, pv)
+    zero = (0.0, 0.0, 0.0)
+    return PathRow(K, kind, st, g, lt.pk, (lt.u, lt.v), axis, lt.eu, lt.ev,
+                   vec(x[ph, K - 1]), zero, w3, w2, w1, t3, t2, t1, zero, pdf)
+
+
+@inline
+def at_hit(row, o, psi, s):
+    """``row`` on the camera ray ``o + s psi``: ``psi`` and ``x0 = y(s)``."""
+    x0 = (o[0] + s * psi[0], o[1] + s * psi[1], o[2] + s * psi[2])
+    return set_field(set_field(row, "psi", psi), "x0", x0)
+
+
+@inline
+def with_t1(row, t1):
+    """``row.with_(t1=t1)`` with its pdf."""
+    return set_field(set_field(row, "t1", t1), "pdf",
+                     set_field(row.pdf, "t1", flight_pdf(t1, row.st)))
+
+
+@inline
+def with_t2(row, t2):
+    return set_field(set_field(row, "t2", t2), "pdf",
+                     set_field(row.pdf, "t2", flight_pdf(t2, row.st)))
+
+
+@inline
+def with_t3(row, t3):
+    return set_field(set_field(row, "t3", t3), "pdf",
+                     set_field(row.pdf, "t3", flight_pdf(t3, row.st)))
+
+
+@inline
+def with_w1(row, w1):
+    """``row.with_(w1=w1)`` with the pdfs of ``w1`` and ``cos th1``."""
+    p1 = direction_pdf(row.K, 1, row.kind, row.axis, row.w2, w1, row.g)
+    pdf = set_field(set_field(row.pdf, "w1", p1), "c1", 2.0 * np.pi * p1)
+    return set_field(set_field(row, "w1", w1), "pdf", pdf)
+
+
+@inline
+def with_light_point(row, x1, u, v):
+    """``row.with_(x1=x1, uv=(u, v))``: the light vertex moved (single-scattering planes),
+    with the light-position pdfs."""
+    puv, pu, pv = position_pdfs(row.kind, row.pk, u, v)
+    pdf = set_field(set_field(set_field(row.pdf, "uv", puv), "u", pu), "v", pv)
+    return set_field(set_field(set_field(row, "x1", x1), "uv", (u, v)), "pdf", pdf)

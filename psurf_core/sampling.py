@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .constants import HG_ISOTROPIC_G
+from .kernels.jit import twin
 
 INV_4PI = 1.0 / (4.0 * np.pi)
 
@@ -69,6 +70,19 @@ def phase_value(mu: np.ndarray, g: float) -> np.ndarray:
     mu = np.clip(mu, -1.0, 1.0)
     # 1 + g^2 - 2 g mu written as a sum of non-negative terms: the textbook form cancels to
     # 0 (an infinite rho, then NaN) at mu = +-1 when |g| is within ~1e-8 of 1.
+    if g > 0.0:
+        denom = (1.0 - g) ** 2 + 2.0 * g * (1.0 - mu)
+    else:
+        denom = (1.0 + g) ** 2 - 2.0 * g * (1.0 + mu)
+    return INV_4PI * ((1.0 - g) * (1.0 + g)) / (denom * np.sqrt(denom))
+
+
+@twin(phase_value)
+def _phase_value(mu, g):
+    """``phase_value`` of one cosine (NaN stays NaN)."""
+    if g == 0.0:
+        return INV_4PI
+    mu = min(max(mu, -1.0), 1.0) if mu == mu else mu
     if g > 0.0:
         denom = (1.0 - g) ** 2 + 2.0 * g * (1.0 - mu)
     else:

@@ -48,7 +48,11 @@ def twin(numpy_function):
         def typer(*args):
             return impl
 
-        typer.__signature__ = _inspect.signature(numpy_function)
+        sig = _inspect.signature(numpy_function)  # numba compares names, not annotations
+        empty = _inspect.Parameter.empty
+        typer.__signature__ = sig.replace(
+            parameters=[q.replace(annotation=empty) for q in sig.parameters.values()],
+            return_annotation=empty)
         overload(numpy_function, inline="always", jit_options=OPTIONS)(typer)
         return impl
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..geometry import Blockers, inside_box
+from ..kernels.jit import twin
 from ..scene import Scene
 
 
@@ -198,6 +199,24 @@ class Technique:
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise dot product of (N, 3) arrays."""
     return np.einsum("ij,ij->i", a, b)
+
+
+@twin(dot)
+def _dot(a, b):
+    """``dot`` of two 3-tuples, summed as numpy's ``einsum`` sums a C-contiguous row
+    (``(a0 b0 + a2 b2) + a1 b1``: its two-way unrolled loop; measured), so that twins agree
+    to the last bit where their numpy inputs are contiguous."""
+    return (a[0] * b[0] + a[2] * b[2]) + a[1] * b[1]
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (N, 3) arrays."""
+    return np.cross(a, b)
+
+
+@twin(cross)
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 def camera_transmittance(scene: Scene, rays, ray_idx: np.ndarray, s: np.ndarray) -> np.ndarray:
