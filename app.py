@@ -1,9 +1,10 @@
 """psurf command line: ``render`` a scene to .npz/.png/.exr, or run the ``demo``.
 
 A thin layer over :mod:`psurf_core` (argument parsing, progress, writing files); the core never
-imports it. The ``render`` command lives in :mod:`ui.render_cli` (with the flag types and
-output helpers shared here) and ``screenshot`` in :mod:`ui.cli`. Every bad input ends with one
-line ``psurf: error: <what>`` on stderr and exit code 2, before anything is written.
+imports it. Every subcommand but ``demo`` lives in :mod:`ui.cli` (``render`` in
+:mod:`ui.cli.render`, the flag types and output helpers shared here in :mod:`ui.cli.common`);
+this file builds the parser and owns ``demo``. Every bad input ends with one line
+``psurf: error: <what>`` on stderr and exit code 2, before anything is written.
 """
 
 from __future__ import annotations
@@ -13,29 +14,32 @@ import os
 import sys
 import textwrap
 
-from ui.cli import _pixel
-from ui.render_cli import (  # noqa: F401 - DEFAULT_* and CliError are part of app's interface
+from ui.cli.common import CliError, Parser
+from ui.cli.common import load_scene as _load_scene
+from ui.cli.common import nonneg_int as _nonneg_int
+from ui.cli.common import note as _note
+from ui.cli.common import npz_writer as _npz_writer
+from ui.cli.common import pixel as _pixel
+from ui.cli.common import plural as _plural
+from ui.cli.common import png_writer as _png_writer
+from ui.cli.common import positive_float as _positive_float
+from ui.cli.common import positive_int as _positive_int
+from ui.cli.common import progress as _progress
+from ui.cli.common import write_all as _write_all
+from ui.cli.compare import add_compare_parser
+from ui.cli.lecture import add_lecture_parser
+from ui.cli.record import add_record_parsers
+from ui.cli.render import (  # noqa: F401 - DEFAULT_* are part of app's interface
     DEFAULT_PASSES,
     DEFAULT_PHOTONS,
     DEFAULT_SEED,
     DEFAULT_SPP,
-    CliError,
-    Parser,
     add_render_parser,
     cmd_render,
 )
-from ui.render_cli import initial_radius as _initial_radius
-from ui.render_cli import load_scene as _load_scene
-from ui.render_cli import nonneg_int as _nonneg_int
-from ui.render_cli import note as _note
-from ui.render_cli import npz_payload as _npz_payload
-from ui.render_cli import npz_writer as _npz_writer
-from ui.render_cli import plural as _plural
-from ui.render_cli import png_writer as _png_writer
-from ui.render_cli import positive_float as _positive_float
-from ui.render_cli import positive_int as _positive_int
-from ui.render_cli import progress as _progress
-from ui.render_cli import write_all as _write_all
+from ui.cli.render import initial_radius as _initial_radius
+from ui.cli.render import npz_payload as _npz_payload
+from ui.cli.screenshot import add_screenshot_parser
 
 PROG = "psurf"
 
@@ -96,7 +100,7 @@ def build_parser() -> Parser:
         dest="command", parser_class=Parser,
         metavar="{render,demo,screenshot,compare,lecture,record,breakdown}")
 
-    render_parser = add_render_parser(sub, estimators)
+    add_render_parser(sub, estimators)  # with --dask/--workers/--jobs
 
     d = sub.add_parser(
         "demo",
@@ -105,7 +109,7 @@ def build_parser() -> Parser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=textwrap.dedent(f"""\
             With a display (DISPLAY or WAYLAND_DISPLAY, and pyvista can open a window) and
-            the interactive app (ui.window) installed: open it on SCENE. Otherwise render
+            the interactive app (ui.views.window) installed: open it on SCENE. Otherwise render
             SCENE with {' and '.join(DEMO_ESTIMATORS)} (about {DEMO_SECONDS:g} s each, the
             scene's scatter range) and write into DIR: render_<est>.png/.npz,
             variance_<est>.png (log-scale viridis) and comparison.png; then print a summary."""),
@@ -132,21 +136,10 @@ def build_parser() -> Parser:
     d.add_argument("--seed", type=_nonneg_int, default=DEFAULT_SEED, help=argparse.SUPPRESS)
     d.set_defaults(func=cmd_demo)
 
-    from ui.cli import add_screenshot_parser  # the UI owns the screenshot command
-
-    add_screenshot_parser(sub)
-
-    from ui.compare_cli import add_compare_parser  # equal-time study; --dask/--workers
-
-    add_compare_parser(sub, render_parser=render_parser)
-
-    from ui.lecture import add_lecture_parser  # lecture mode: the tutorials' key states
-
-    add_lecture_parser(sub)
-
-    from ui.record_cli import add_record_parsers  # record (GIF/MP4), breakdown (MIS PNGs)
-
-    add_record_parsers(sub)
+    add_screenshot_parser(sub)  # one stage of the window, off-screen
+    add_compare_parser(sub)  # equal-time study
+    add_lecture_parser(sub)  # lecture mode: the tutorials' key states
+    add_record_parsers(sub)  # record (GIF/MP4), breakdown (MIS PNGs)
     return top
 
 
@@ -154,24 +147,25 @@ def build_parser() -> Parser:
 
 
 def _interactive_run():
-    """``ui.interactive.run`` when a display, pyvista and the app are all available, else None."""
+    """``ui.views.interactive.run`` when a display, pyvista and the app are all available, else
+    None."""
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         return None
     import importlib
     import importlib.util
 
     try:
-        if importlib.util.find_spec("ui.interactive") is None:
+        if importlib.util.find_spec("ui.views.interactive") is None:
             return None
-        run = getattr(importlib.import_module("ui.interactive"), "run", None)
+        run = getattr(importlib.import_module("ui.views.interactive"), "run", None)
     except ImportError:
         return None
     if not callable(run):
         return None
     try:
-        import pyvista
+        from ui.views._vtk import pv
 
-        if not pyvista.system_supports_plotting():
+        if not pv.system_supports_plotting():
             return None
     except Exception:
         return None
@@ -337,11 +331,11 @@ def _demo_screenshots(scene, args) -> list:
     pixel: what ``make demo`` would have shown with a display. Returns the paths written; an
     off-screen renderer that is missing costs a note, not the demo."""
     try:
-        import pyvista
+        from ui.views._vtk import pv
 
-        pyvista.OFF_SCREEN = True
-        from ui.stepper import STAGES
-        from ui.window import screenshot
+        pv.OFF_SCREEN = True
+        from ui.views.stepper import STAGES
+        from ui.views.window import screenshot
     except (ImportError, RuntimeError) as e:
         _note(f"no app screenshots: off-screen rendering is unavailable ({e})")
         return []

@@ -1,6 +1,6 @@
 """UI-thread frame times while progressive rendering runs in the background (not a test).
 
-Drives the window's composition off-screen (``ui.window.make_plotter`` + ``compose``: the
+Drives the window's composition off-screen (``ui.views.window.make_plotter`` + ``compose``: the
 3D view, the stage panel and the image panels at the window's size) and then, every
 ``--period`` seconds (the window's timer), times what the UI thread does per frame:
 
@@ -9,7 +9,7 @@ Drives the window's composition off-screen (``ui.window.make_plotter`` + ``compo
   two image cells + ``plotter.render()`` (a "frame"; ``--every-tick`` draws on every tick).
   The panel mode cycles render -> techniques -> bounces (a third of the ticks each, so mode
   switches, i.e. rebuilds, are included). Reported: the frames, and every tick;
-* ``window-tick``: ``ui.interactive.App.tick`` itself with the window's own progressive wiring
+* ``window-tick``: ``ui.views.interactive.App.tick`` itself with the window's own progressive wiring
   (what its VTK timer calls: poll, and on new passes the panels, the stage text and a render);
   frames are the ticks that merged passes; the ``m`` key (a full redraw) is timed apart;
 * ``synchronous`` (for comparison, fewer frames): what the window's timer did before, one
@@ -17,7 +17,7 @@ Drives the window's composition off-screen (``ui.window.make_plotter`` + ``compo
 
 Both with VTK's default multisampling and with multisampling off, since software OpenGL (no
 GPU, EGL/llvmpipe) spends most of a frame on it; the window itself turns it off on its first
-tick when it finds software OpenGL (``ui.window.software_opengl``), so ``window-tick/no-msaa``
+tick when it finds software OpenGL (``ui.views.window.software_opengl``), so ``window-tick/no-msaa``
 is what the window does here. On a new pass the window redraws the image panels and the stage
 text only: the 3D view keeps its pixels (``App._frame``).
 
@@ -56,9 +56,9 @@ def run(args) -> dict:
 
     pv.OFF_SCREEN = True
     from psurf_core.render import RenderSettings, render_pass
-    from ui import window
-    from ui.image_panels import MODES, PanelView
-    from ui.progressive import Progressive
+    from ui.cli.progressive import Progressive
+    from ui.views import window
+    from ui.views.image_panels import MODES, PanelView
 
     specs = args.estimators.split(",")
     state = window.build_state(args.scene, specs[0], seed=0, photons=args.photons, passes=1)
@@ -130,10 +130,10 @@ def run(args) -> dict:
 
 
 def _window_ticks(args, specs, old_plotter, msaa: bool) -> dict:
-    """Time ``ui.interactive.App.tick`` itself (what the window's VTK timer calls), with the
+    """Time ``ui.views.interactive.App.tick`` itself (what the window's VTK timer calls), with the
     window's own progressive wiring (``attach_progressive``, one worker process); the ``m``
     key (``App.next_mode``: a full redraw) is timed apart, a third of the way and two thirds."""
-    from ui import interactive, window
+    from ui.views import interactive, window
 
     state = window.build_state(args.scene, specs[0], seed=0, photons=args.photons,
                                render_passes=False)

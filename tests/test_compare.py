@@ -57,11 +57,11 @@ max_scatter = 2
 ROW_KEYS = {"estimator", "passes", "mean_variance", "relmse", "ratio"}
 
 
-def run_module(*args, cwd: Path, timeout: float = 120.0) -> subprocess.CompletedProcess:
+def run_app(*args, cwd: Path, timeout: float = 120.0) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     env["MPLBACKEND"] = "Agg"
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
-    return subprocess.run([sys.executable, "-m", "ui.compare_cli", *map(str, args)], cwd=cwd,
+    return subprocess.run([sys.executable, str(ROOT / "app.py"), *map(str, args)], cwd=cwd,
                           env=env, capture_output=True, text=True, timeout=timeout)
 
 
@@ -166,7 +166,7 @@ def test_reference_file_round_trip_and_checks(study, tiny):
 def test_cli_with_reference_file(study, tiny, tmp_path):
     _, out = study
     d, _ = tiny
-    r = run_module("compare", d / "tiny.toml", "--estimators", "planes,points", "--time", "1",
+    r = run_app("compare", d / "tiny.toml", "--estimators", "planes,points", "--time", "1",
                    "--photons", "500,300", "--reference", out / "reference.npz",
                    "--out", tmp_path / "cli", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
@@ -191,7 +191,7 @@ def test_cli_errors_are_one_line(tiny, tmp_path, args, message):
     argv = ["compare", d / "tiny.toml", *args, "--out", tmp_path / "o"]
     if "--time" not in args:
         argv += ["--time", "1"]
-    r = run_module(*argv, cwd=tmp_path)
+    r = run_app(*argv, cwd=tmp_path)
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("psurf: error: ") and message in lines[0]
@@ -206,7 +206,7 @@ def test_default_is_single_process_without_dask(tiny):
         "from psurf_core import load_scene\n"
         "from psurf_core.render import RenderSettings\n"
         "from psurf_core.study import compare\n"
-        "from ui.compare_cli import maybe_distributed\n"
+        "from ui.cli.parallel import maybe_distributed\n"
         f"sc = load_scene({str(d / 'tiny.toml')!r})\n"
         "a = argparse.Namespace(dask=None, workers=None)\n"
         "assert maybe_distributed(a, sc, 'planes', RenderSettings(photons=100), passes=1) is None\n"

@@ -23,7 +23,7 @@ from dask.distributed import LocalCluster
 from psurf_core import load_scene, parse_estimator
 from psurf_core.distributed import DistributedError, cluster_client, render_distributed
 from psurf_core.render import RenderSettings, render
-from ui.compare_cli import maybe_distributed
+from ui.cli.parallel import maybe_distributed
 
 ROOT = Path(__file__).resolve().parent.parent
 SETTINGS = RenderSettings(photons=400)
@@ -114,7 +114,7 @@ def test_compare_cli_on_the_cluster(cluster, tmp_path):
     sc.write_text(text + "\n[render]\nmin_scatter = 2\nmax_scatter = 2\n")
     env = {**os.environ, "MPLBACKEND": "Agg",
            "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    r = subprocess.run([sys.executable, "-m", "ui.compare_cli", "compare", str(sc),
+    r = subprocess.run([sys.executable, str(ROOT / "app.py"), "compare", str(sc),
                         "--estimators", "planes,points", "--time", "1", "--photons", "300",
                         "--reference-time", "1", "--dask", cluster.scheduler_address,
                         "--out", str(tmp_path / "o")],

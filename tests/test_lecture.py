@@ -1,6 +1,6 @@
 """Lecture mode: every pinned state against its committed screenshot, keys, command line.
 
-Every state of ``ui.lecture.STATES`` is rendered off-screen at 800 x 450 and compared with
+Every state of ``ui.views.lecture.STATES`` is rendered off-screen at 800 x 450 and compared with
 ``tests/baselines/lecture_NN.png`` (NN = state number, from 01) by SSIM over the RGB channels,
 with the tolerance and the refresh convention of ``tests/test_ui_screenshots.py``::
 
@@ -24,8 +24,10 @@ pv.OFF_SCREEN = True
 
 from skimage.metrics import structural_similarity  # noqa: E402
 
-from ui.lecture import STATES, Lecture, add_lecture_parser, load_state_scene  # noqa: E402
-from ui.stepper import STAGES  # noqa: E402
+from ui.cli.lecture import add_lecture_parser  # noqa: E402
+from ui.views.lecture import Lecture  # noqa: E402
+from ui.views.lecture_states import STATES, load_state_scene  # noqa: E402
+from ui.views.stepper import STAGES  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINES = Path(__file__).resolve().parent / "baselines"
@@ -47,7 +49,7 @@ def _baseline(i: int) -> Path:
 @pytest.mark.parametrize("index", range(len(STATES)),
                          ids=[f"{i + 1:02d}" for i in range(len(STATES))])
 def test_state_matches_baseline(index, tmp_path):
-    from ui.lecture import lecture_screenshot
+    from ui.views.lecture import lecture_screenshot
 
     out = tmp_path / f"lecture_{index + 1:02d}.png"
     img = lecture_screenshot(index, str(out), size=SIZE)
@@ -99,7 +101,7 @@ def test_states_are_pinned_and_valid():
 
 def test_keys_offscreen(tmp_path, monkeypatch):
     """The lecture's key handlers, driven directly on an off-screen plotter."""
-    from ui.window import make_plotter
+    from ui.views.window import make_plotter
 
     monkeypatch.chdir(tmp_path)
     start = next(i for i, s in enumerate(STATES) if s.scatter == (1, 1) and s.estimator == "planes")

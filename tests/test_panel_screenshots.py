@@ -1,4 +1,4 @@
-"""The image-panel modes (``ui.image_panels``: render, techniques, bounces), off-screen,
+"""The image-panel modes (``ui.views.image_panels``: render, techniques, bounces), off-screen,
 compared with ``tests/baselines/panels_<scene>_<mode>.png`` by SSIM >= 0.95 (as the window's
 stage screenshots; see ``tests/test_ui_screenshots.py`` for the tolerance and how to refresh:
 ``PSURF_UPDATE_BASELINES=1``). Synchronous passes (``workers=0``) with a fixed seed, so the
@@ -19,8 +19,8 @@ from skimage.metrics import structural_similarity  # noqa: E402
 
 from psurf_core.render import RenderSettings  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
-from ui.image_panels import MODES, FigureMaker  # noqa: E402
-from ui.progressive import Progressive  # noqa: E402
+from ui.cli.progressive import Progressive  # noqa: E402
+from ui.views.image_panels import MODES, FigureMaker  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINES = Path(__file__).resolve().parent / "baselines"
@@ -94,7 +94,7 @@ def test_modes_differ(pictures):
 def test_modes_before_any_pass_and_without_breakdown():
     """Right after a reset (no pass yet) and for an estimator without a breakdown, every mode
     draws (a message tile where there is nothing to show), with finite numbers only."""
-    from ui.image_panels import mode_areas
+    from ui.views.image_panels import mode_areas
 
     scene = load_scene(str(ROOT / "scenes" / "point.toml"))
     empty = Progressive(scene, ["planes", "beams"], RenderSettings(photons=50), workers=0,
@@ -118,7 +118,7 @@ def test_modes_before_any_pass_and_without_breakdown():
 
 
 def test_panel_view_updates_in_place_and_rebuilds_after_a_clear():
-    from ui.image_panels import MEAN_VARIANCE_BAR, draw_image_panels
+    from ui.views.image_panels import MEAN_VARIANCE_BAR, draw_image_panels
 
     scene = load_scene(str(ROOT / "scenes" / "point.toml"))
     prog = Progressive(scene, ["planes", "beams"], RenderSettings(photons=50), workers=0)
@@ -151,7 +151,7 @@ def view_clim(view):
 
 
 def test_moving_the_pixel_moves_the_outlines_without_a_rebuild():
-    from ui.image_panels import PanelView
+    from ui.views.image_panels import PanelView
 
     scene = load_scene(str(ROOT / "scenes" / "point.toml"))
     prog = Progressive(scene, ["planes"], RenderSettings(photons=50), workers=0)

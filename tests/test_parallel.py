@@ -66,7 +66,7 @@ def test_render_hook_jobs(scene):
     """``render --jobs 2`` goes through ``maybe_distributed``; ``--jobs 1`` stays in-process."""
     import argparse
 
-    from ui.compare_cli import maybe_distributed
+    from ui.cli.parallel import maybe_distributed
 
     est = parse_estimator("planes", scene)
     args = argparse.Namespace(dask=None, workers=None, jobs=2)

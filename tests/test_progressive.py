@@ -1,4 +1,4 @@
-"""Background progressive rendering (``ui.progressive``): merged passes equal a serial render
+"""Background progressive rendering (``ui.cli.progressive``): merged passes equal a serial render
 bit for bit, whichever process rendered them and in whatever order they arrived."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from psurf_core.estimators import parse_estimator
 from psurf_core.render import RenderSettings, render
 from psurf_core.scene_io import load_scene
 from psurf_core.techniques import UnknownTechnique
-from ui.progressive import Job, Progressive, _Engine, compare_rows
+from ui.cli.progressive import Job, Progressive, _Engine, compare_rows
 
 SETTINGS = RenderSettings(photons=150)
 

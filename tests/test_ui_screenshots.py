@@ -1,6 +1,6 @@
 """Screenshots of every stage of the window, compared with committed baselines.
 
-Every stage of ``ui.window`` is rendered off-screen for two bundled scenes (``point.toml`` and
+Every stage of ``ui.views.window`` is rendered off-screen for two bundled scenes (``point.toml`` and
 ``area_occluder.toml``) at a fixed pixel and seed with tiny budgets (200 photons, 2 passes,
 800 x 450), and compared with ``tests/baselines/<scene>_<stage>.png`` by SSIM
 (``skimage.metrics.structural_similarity`` over the RGB channels).
@@ -33,7 +33,7 @@ pv.OFF_SCREEN = True
 
 from skimage.metrics import structural_similarity  # noqa: E402
 
-from ui.stepper import STAGES  # noqa: E402
+from ui.views.stepper import STAGES  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINES = Path(__file__).resolve().parent / "baselines"
@@ -54,7 +54,7 @@ def _read(path: Path) -> np.ndarray:
 @pytest.mark.parametrize("stage", STAGES)
 @pytest.mark.parametrize("scene", SCENES)
 def test_stage_matches_baseline(scene, stage, tmp_path):
-    from ui.window import screenshot
+    from ui.views.window import screenshot
 
     out = tmp_path / f"{scene}_{stage}.png"
     img = screenshot(str(ROOT / "scenes" / f"{scene}.toml"), stage, out=str(out), **SHOT)
@@ -79,7 +79,7 @@ def test_stage_matches_baseline(scene, stage, tmp_path):
 def test_stage_texts_match_baseline(scene):
     """The stage panel's text (the numbers: hit tables, sums, weights) of every stage, exactly:
     SSIM barely notices a changed digit in a table, this does. Refreshed with the PNGs."""
-    from ui.window import build_state, panel_text
+    from ui.views.window import build_state, panel_text
 
     shot = {k: v for k, v in SHOT.items() if k != "size"}
     state = build_state(str(ROOT / "scenes" / f"{scene}.toml"), render_passes=False, **shot)
@@ -100,7 +100,7 @@ def test_stage_texts_match_baseline(scene):
 def test_coverage_and_pass_match_baseline(tmp_path):
     """Coverage (primitive -> pixels) of the top hit, inspecting pass 1 (``--coverage
     --pass 1``): the tinted pixels on the render panel and the panel's coverage line."""
-    from ui.window import screenshot
+    from ui.views.window import screenshot
 
     out = tmp_path / "point_coverage_pass1.png"
     shot = dict(SHOT, estimator="plane-t1t2", pixel_xy=(30, 20))
@@ -131,7 +131,7 @@ def test_stages_differ():
 def _cli(argv, capsys):
     import argparse
 
-    from ui.cli import add_screenshot_parser
+    from ui.cli.screenshot import add_screenshot_parser
 
     class P(argparse.ArgumentParser):
         def error(self, message):
@@ -171,8 +171,8 @@ def test_cli_bad_pixel_syntax(capsys, tmp_path):
 # --------------------------------------------------------------------------- window actions
 def test_window_actions_offscreen(tmp_path, monkeypatch):
     """The key handlers of the window, driven directly on an off-screen plotter."""
-    from ui.interactive import App
-    from ui.window import build_state, compose, make_plotter
+    from ui.views.interactive import App
+    from ui.views.window import build_state, compose, make_plotter
 
     monkeypatch.chdir(tmp_path)
     state = build_state(str(ROOT / "scenes" / "point.toml"), "planes", seed=1, pixel_xy=(32, 24),

@@ -1,7 +1,7 @@
 """The window's interaction: picking a pixel by clicking, coverage (primitive -> pixels), the
 inspected pass, buttons, estimator members and the debounced medium / photon controls.
 
-The conversions are pure functions (``ui.controls``) checked against VTK's own
+The conversions are pure functions (``ui.views.controls``) checked against VTK's own
 display -> world transform; the actions are driven on an off-screen plotter, clicks also as
 synthetic VTK mouse events through the interactor (the path a real click takes).
 """
@@ -17,7 +17,7 @@ import pytest
 pv = pytest.importorskip("pyvista")
 pv.OFF_SCREEN = True
 
-from ui import controls  # noqa: E402
+from ui.views import controls  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 POINT = str(ROOT / "scenes" / "point.toml")
@@ -134,7 +134,7 @@ def test_debouncer_applies_the_last_value_once_quiet():
 
 
 def test_coverage_mesh_outline():
-    from ui.primitives_view import coverage_mesh
+    from ui.views.primitives_view import coverage_mesh
 
     m = np.zeros((4, 5), bool)
     m[1, 1:3] = True  # two pixels side by side: 6 outline edges, 2 cells
@@ -149,8 +149,8 @@ def test_coverage_mesh_outline():
 # --------------------------------------------------------------------------- the window
 @pytest.fixture(scope="module")
 def window():
-    from ui.interactive import App
-    from ui.window import build_state, compose, make_plotter
+    from ui.views.interactive import App
+    from ui.views.window import build_state, compose, make_plotter
 
     state = build_state(POINT, "mis:plane-t1t2+planes", seed=1, pixel_xy=(32, 24),
                         photons=100, passes=2)
@@ -225,7 +225,7 @@ def test_buttons(window):
 
 def test_coverage_follows_the_selected_hit(window):
     from psurf_core.inspect import primitive_pixels
-    from ui.window import coverage_target, panel_text
+    from ui.views.window import coverage_target, panel_text
 
     app, s = window, window.s
     app.set_pixel((32, 24))
@@ -245,7 +245,7 @@ def test_coverage_follows_the_selected_hit(window):
 
 
 def test_right_click_picks_a_primitive(window):
-    from ui.window import coverage_target
+    from ui.views.window import coverage_target
 
     app, s = window, window.s
     app.set_pixel((32, 24))
@@ -325,12 +325,12 @@ def test_medium_changes_are_debounced_and_restart(window):
 
 # --------------------------------------------------------------------------- progressive
 def test_progressive_panels_tick_pick_and_modes():
-    """The window with ``ui.progressive`` (``workers=0``: the tick renders the pass itself,
+    """The window with ``ui.cli.progressive`` (``workers=0``: the tick renders the pass itself,
     deterministically): passes arrive through ``tick``, a click on a scaled tile of
     ``image_panels.PanelView`` picks the pixel, coverage lands on the inspected estimator's
     tile, ``m`` cycles the panel modes, a medium change restarts the worker's job."""
-    from ui.interactive import App
-    from ui.window import attach_progressive, build_state, compose, make_plotter
+    from ui.views.interactive import App
+    from ui.views.window import attach_progressive, build_state, compose, make_plotter
 
     state = build_state(POINT, "mis:plane-t1t2+planes", seed=1, pixel_xy=(32, 24),
                         photons=100, render_passes=False)
@@ -410,9 +410,9 @@ def test_window_reference_and_pixel_flag_errors(flags, message, capsys, tmp_path
 def test_reference_gives_relmse_in_the_panels_and_is_dropped_with_the_medium(tmp_path):
     """``--reference``: the render panels show relMSE against it (the window and
     ``screenshot``); a medium change drops it (it is the image of the loaded medium)."""
-    from ui.image_panels import mode_areas
-    from ui.interactive import App
-    from ui.window import (
+    from ui.views.image_panels import mode_areas
+    from ui.views.interactive import App
+    from ui.views.window import (
         attach_progressive,
         build_state,
         load_reference_image,

@@ -1,12 +1,12 @@
 """The real interactive window under a virtual X server (skipped when ``xvfb-run`` is absent).
 
 ``python app.py scenes/area.toml`` opens the window; ``PSURF_WINDOW_SCRIPT`` (see
-``ui.interactive.SCRIPT_ENV``) plays key presses and mouse clicks through VTK's interactor, one per
-timer tick, takes screenshots and quits. The test checks that the window opens, steps through
-every stage, picks pixels by clicking both image panels (the progressive panels of
-``ui.image_panels``), toggles coverage, the inspected pass, the panel mode and the sliders,
-records a GIF, and closes with exit code 0 (the background render worker stopped). By hand
-(Debian: ``apt-get install xvfb``)::
+``ui.views.interactive.SCRIPT_ENV``) plays key presses and mouse clicks through VTK's
+interactor, one per timer tick, takes screenshots and quits. The test checks that the window
+opens, steps through every stage, picks pixels by clicking both image panels (the progressive
+panels of ``ui.views.image_panels``), toggles coverage, the inspected pass, the panel mode and
+the sliders, records a GIF, and closes with exit code 0 (the background render worker
+stopped). By hand (Debian: ``apt-get install xvfb``)::
 
     PSURF_WINDOW_SCRIPT="n;n;n;n;click:render:10,30;shot:/tmp/w.png;q" \\
         xvfb-run -a -s "-screen 0 1700x1000x24" .venv/bin/python app.py scenes/area.toml
@@ -44,7 +44,7 @@ def test_window_opens_steps_picks_and_closes(tmp_path):
     env = dict(os.environ, PSURF_WINDOW_SCRIPT=script, PSURF_WINDOW_SIZE="800,450",
                MPLBACKEND="Agg")
     env.pop("DISPLAY", None)
-    # ui/__init__ (imported by earlier tests in this process, which has no display) chose
+    # ui/views/_vtk (imported by earlier tests in this process, which has no display) chose
     # VTK's EGL window; the child has Xvfb's display and must pick the X window itself.
     env.pop("VTK_DEFAULT_OPENGL_WINDOW", None)
     proc = subprocess.run(

@@ -49,7 +49,7 @@ from psurf_core import RenderSettings, camera_rays, images, load_scene, parse_es
 from psurf_core.reference import single_scatter_quadrature
 from psurf_core.sampling import phase_value
 from psurf_core.trace import trace
-from ui import primitives_view, scene_view
+from ui.views import primitives_view, scene_view
 
 pv.OFF_SCREEN = True
 scene_view.plain_text()

@@ -50,7 +50,7 @@ from psurf_core import RenderSettings, images, load_scene, parse_estimator, rend
 from psurf_core.camera import clip_rays, pixel_directions
 from psurf_core.inspect import inspect_pixel
 from psurf_core.reference import single_scatter_quadrature
-from ui import scene_view
+from ui.views import scene_view
 
 OK = scene_view.OKABE_ITO  # colour-blind-safe palette (Okabe & Ito)
 plt.rcParams.update({

@@ -47,7 +47,7 @@ import pyvista as pv
 
 from psurf_core import RenderSettings, load_scene
 from psurf_core.inspect import inspect_pixel, reconstruct_hit
-from ui import hits_view, primitives_view, scene_view
+from ui.views import hits_view, primitives_view, scene_view
 
 pv.OFF_SCREEN = True
 scene_view.plain_text()

@@ -50,7 +50,7 @@ from psurf_core import RenderSettings, images, load_scene, parse_estimator, rend
 from psurf_core.camera import clip_rays, pixel_directions
 from psurf_core.inspect import inspect_pixel, reconstruct_hit
 from psurf_core.reference import single_scatter_quadrature
-from ui import primitives_view, scene_view
+from ui.views import primitives_view, scene_view
 
 pv.OFF_SCREEN = True
 scene_view.plain_text()

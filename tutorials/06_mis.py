@@ -48,7 +48,7 @@ import pyvista as pv
 from psurf_core import RenderSettings, images, load_scene, parse_estimator, render_pass
 from psurf_core.inspect import inspect_pixel, reconstruct_hit
 from psurf_core.render import PassRecord
-from ui import hits_view, scene_view
+from ui.views import hits_view, scene_view
 
 pv.OFF_SCREEN = True
 scene_view.plain_text()

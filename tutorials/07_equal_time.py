@@ -47,7 +47,7 @@ OUT = Path(os.environ.get("PSURF_TUTORIAL_OUT", ROOT / "out" / "tutorials"))
 OUT.mkdir(parents=True, exist_ok=True)
 
 from psurf_core import RenderSettings, images, load_scene, parse_estimator, render_pass
-from ui import scene_view
+from ui.views import scene_view
 
 OK = scene_view.OKABE_ITO  # colour-blind-safe palette (Okabe & Ito)
 plt.rcParams.update({

@@ -50,7 +50,7 @@ from psurf_core import RenderSettings, images, load_scene, parse_estimator, rend
 from psurf_core.inspect import inspect_pixel
 from psurf_core.render import PassRecord
 from psurf_core.sampling import sample_free_flight
-from ui import primitives_view, scene_view
+from ui.views import primitives_view, scene_view
 
 pv.OFF_SCREEN = True
 scene_view.plain_text()

@@ -1,10 +1,11 @@
-"""psurf UI: PyVista views of every stage (the only package that imports pyvista/vtk).
+"""psurf's user interface, in two halves.
 
-Without a display, VTK 9.4+ tries X first, prints "bad X server connection", then falls back
-to EGL/OSMesa. Choosing EGL up front (unless the user chose) keeps stderr to one clear line.
+* :mod:`ui.cli`: the ``python app.py`` commands (render, compare, record/breakdown, screenshot
+  and lecture command lines, checkpoints) and the progressive background-render worker. No
+  pyvista at module level: ``app.py render`` never loads VTK.
+* :mod:`ui.views`: the PyVista views of every stage, the window and lecture mode.
+  :mod:`ui.views._vtk` is the only module that imports pyvista/vtk (and sets up headless
+  rendering before it does).
+
+The core (:mod:`psurf_core`) never imports either.
 """
-
-import os
-
-if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")

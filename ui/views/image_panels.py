@@ -11,12 +11,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pyvista as pv
 
 from psurf_core import images as im
 from psurf_core.accumulate import Welford
 
 from . import scene_view
+from ._vtk import pv, vtkTextActor
 from .scene_view import FONT_SMALL, HIGHLIGHT, OKABE_ITO, add_text, pt, px
 
 VARIANCE_CMAP = "viridis"
@@ -211,7 +211,7 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
     list of Area
         Two areas; a mode without data (no breakdown) gives areas with one message tile.
     """
-    from ui.progressive import compare_rows
+    from ui.cli.progressive import compare_rows
 
     ents = entries_of(source)
     if mode not in MODES:
@@ -304,8 +304,6 @@ def _label(plotter, text: str, x: float, y: float, size: float, *, name: str,
     A plain ``vtkTextActor`` (not ``plotter.add_text``): after a panel was rebuilt with
     another layout, pyvista's text actors sometimes came back at twice their font size.
     """
-    from vtkmodules.vtkRenderingCore import vtkTextActor
-
     actor = vtkTextActor()
     actor.SetInput(text)
     actor.SetTextScaleModeToNone()

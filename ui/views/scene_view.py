@@ -8,11 +8,11 @@ primitive family, and projector-sized fonts and lines. Everything here draws wha
 from __future__ import annotations
 
 import numpy as np
-import pyvista as pv
-from vtkmodules.vtkRenderingCore import vtkTextRenderer
 
 from psurf_core.camera import pixel_directions
 from psurf_core.scene import AreaLight, BoxOccluder, MeshLight, PointLight, Scene, SphereOccluder
+
+from ._vtk import pv, register_text_backends, vtkTextRenderer
 
 # --------------------------------------------------------------------------- look
 #: Okabe & Ito (2008), "Color Universal Design": distinguishable with every common colour
@@ -80,11 +80,7 @@ def px(width: float) -> float:
 def plain_text() -> None:
     """Render every string with FreeType as written: VTK would otherwise hand strings with
     ``|`` or ``$`` to its MathText backend (``|`` splits columns), and ``|n.psi|`` matters."""
-    try:  # the MathText override must be registered before the singleton is made
-        import vtkmodules.vtkRenderingFreeType  # noqa: F401
-        import vtkmodules.vtkRenderingMatplotlib  # noqa: F401
-    except ImportError:
-        pass
+    register_text_backends()  # the MathText override must be registered before the singleton
     renderer = vtkTextRenderer.GetInstance()
     if renderer is not None:
         renderer.SetDefaultBackend(1)  # vtkTextRenderer::FreeType

@@ -7,9 +7,9 @@ from __future__ import annotations
 import textwrap
 
 import numpy as np
-import pyvista as pv
 
 from . import scene_view
+from ._vtk import pv
 from .primitives_view import add_legend, add_primitives, primitive_mesh
 from .scene_view import (
     FONT,

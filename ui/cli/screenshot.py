@@ -2,66 +2,26 @@
 
 ``app.py`` wires it in with::
 
-    from ui.cli import add_screenshot_parser
+    from ui.cli.screenshot import add_screenshot_parser
     add_screenshot_parser(subparsers)      # sets func=run_screenshot
 
 ``run_screenshot(args)`` returns the exit code; every bad input is one line
-``psurf: error: ...`` on stderr and exit code 2, before anything is written.
+``psurf: error: ...`` on stderr and exit code 2, before anything is written. The picture is
+:func:`ui.views.window.screenshot`'s, imported (with VTK) only to draw it.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
 
-PROG = "psurf"
-STAGES = ("trace", "create", "intersect", "evaluate", "reconstruct")
+from ui.views.stepper import DEFAULT_PASSES, DEFAULT_PHOTONS, STAGES
 
-
-def _pair(text: str, what: str, minimum: int) -> tuple[int, int]:
-    parts = text.replace("x", ",").split(",")
-    try:
-        a, b = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
-    if a < minimum or b < minimum:
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
-    return a, b
-
-
-def _pixel(text: str) -> tuple[int, int]:
-    return _pair(text, "X,Y (two integers >= 0: column from the left, row from the top)", 0)
-
-
-def _size(text: str) -> tuple[int, int]:
-    return _pair(text, "W,H (two integers >= 64)", 64)
-
-
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer > 0, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"must be an integer > 0, got {text!r}")
-    return v
-
-
-def _nonneg(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
-    return v
+from .common import fail, nonneg_int, pixel, positive_int, window_size
 
 
 def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``screenshot`` subcommand to ``subparsers`` (``func=run_screenshot``)."""
-    from ui.window import DEFAULT_PASSES, DEFAULT_PHOTONS
-
     p = subparsers.add_parser(
         "screenshot",
         help="render one stage of the interactive window off-screen to a PNG",
@@ -71,22 +31,22 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument("scene", metavar="SCENE.toml", help="scene file")
     p.add_argument("--stage", required=True, choices=STAGES, help="stage to show")
-    p.add_argument("--pixel", required=True, type=_pixel, metavar="X,Y",
+    p.add_argument("--pixel", required=True, type=pixel, metavar="X,Y",
                    help="picked pixel: X column from the left, Y row from the top")
     p.add_argument("--estimator", default="planes", metavar="SPEC",
                    help="photon estimator (default: planes; e.g. mis:planes+plane-t1t2)")
-    p.add_argument("--seed", type=_nonneg, default=0, help="random seed (default: 0)")
+    p.add_argument("--seed", type=nonneg_int, default=0, help="random seed (default: 0)")
     p.add_argument("--out", required=True, metavar="shot.png", help="PNG to write")
-    p.add_argument("--size", type=_size, default=(1600, 900), metavar="W,H",
+    p.add_argument("--size", type=window_size, default=(1600, 900), metavar="W,H",
                    help="image size in pixels (default: 1600,900)")
-    p.add_argument("--passes", type=_positive, default=DEFAULT_PASSES, metavar="P",
+    p.add_argument("--passes", type=positive_int, default=DEFAULT_PASSES, metavar="P",
                    help=f"passes in the render panels (default: {DEFAULT_PASSES})")
-    p.add_argument("--photons", type=_positive, default=DEFAULT_PHOTONS, metavar="N",
+    p.add_argument("--photons", type=positive_int, default=DEFAULT_PHOTONS, metavar="N",
                    help=f"photons per pass (default: {DEFAULT_PHOTONS})")
-    p.add_argument("--hit", type=_nonneg, default=None, metavar="K",
+    p.add_argument("--hit", type=nonneg_int, default=None, metavar="K",
                    help="reconstruct and --coverage: the hit numbered #K in the evaluate "
                         "table (default 0)")
-    p.add_argument("--pass", dest="pass_index", type=_nonneg, default=0, metavar="N",
+    p.add_argument("--pass", dest="pass_index", type=nonneg_int, default=0, metavar="N",
                    help="the inspected pass, 0 <= N < --passes (default: 0)")
     p.add_argument("--estimators", default=None, metavar="A,B",
                    help="image panels: these estimators side by side, the first inspected "
@@ -102,11 +62,6 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def _fail(message: str) -> int:
-    print(f"{PROG}: error: {' '.join(str(message).split())}", file=sys.stderr)
-    return 2
-
-
 def run_screenshot(args) -> int:
     """Run ``screenshot``; returns 0, or 2 after one ``psurf: error:`` line."""
     from psurf_core.estimators import parse_estimator
@@ -116,17 +71,17 @@ def run_screenshot(args) -> int:
 
     out = args.out
     if not out.lower().endswith(".png"):
-        return _fail(f"--out {out}: must end in .png")
+        return fail(f"--out {out}: must end in .png")
     d = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(d):
-        return _fail(f"--out {out}: directory {d} does not exist")
+        return fail(f"--out {out}: directory {d} does not exist")
     if os.path.isdir(out):
-        return _fail(f"--out {out}: is a directory")
+        return fail(f"--out {out}: is a directory")
     specs = [args.estimator]
     if args.estimators is not None:
         specs = [e.strip() for e in args.estimators.split(",")]
         if any(not e for e in specs):
-            return _fail(f"--estimators {args.estimators}: must be a comma-separated list of "
+            return fail(f"--estimators {args.estimators}: must be a comma-separated list of "
                          "estimator specs")
     try:
         scene = load_scene(args.scene)
@@ -134,53 +89,33 @@ def run_screenshot(args) -> int:
         for extra in specs[1:]:
             parse_estimator(extra, scene)
     except (SceneError, UnknownTechnique) as e:
-        return _fail(str(e))
+        return fail(str(e))
     if est.reference:
         flag = "--estimators" if args.estimators is not None else "--estimator"
-        return _fail(f"{flag} reference: the stages need a photon estimator "
+        return fail(f"{flag} reference: the stages need a photon estimator "
                      "(the path tracer has no photons or primitives)")
     cam = scene.camera
     x, y = args.pixel
     if not (x < cam.width and y < cam.height):
-        return _fail(f"--pixel {x},{y}: outside the {cam.width}x{cam.height} image "
+        return fail(f"--pixel {x},{y}: outside the {cam.width}x{cam.height} image "
                      f"(X in 0..{cam.width - 1}, Y in 0..{cam.height - 1})")
     if args.pass_index >= args.passes:
-        return _fail(f"--pass {args.pass_index}: the image panels hold passes "
+        return fail(f"--pass {args.pass_index}: the image panels hold passes "
                      f"0..{args.passes - 1} (--passes {args.passes})")
     try:
-        import pyvista
+        from ui.views._vtk import pv
 
-        pyvista.OFF_SCREEN = True
-        from ui.window import screenshot
+        pv.OFF_SCREEN = True
+        from ui.views.window import screenshot
 
         screenshot(args.scene, args.stage, (x, y), specs[0], args.seed, out,
                    size=tuple(args.size), passes=args.passes, hit=args.hit,
                    photons=args.photons, pass_index=args.pass_index, coverage=args.coverage,
                    estimators=specs[1:], mode=args.mode, reference=args.reference)
     except (SceneError, UnknownTechnique, ValueError) as e:
-        return _fail(str(e))
+        return fail(str(e))
     except (ImportError, RuntimeError) as e:
-        return _fail(f"off-screen rendering is unavailable ({type(e).__name__}: {e}); "
+        return fail(f"off-screen rendering is unavailable ({type(e).__name__}: {e}); "
                      "it needs VTK with EGL or OSMesa (libegl1 / libosmesa6)")
     print(f"wrote {out}")
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Stand-alone entry (``python -m ui.cli screenshot ...``) until ``app.py`` wires it."""
-
-    class _Parser(argparse.ArgumentParser):
-        def error(self, message):
-            raise SystemExit(_fail(message))
-
-    top = _Parser(prog=PROG)
-    sub = top.add_subparsers(dest="command", parser_class=_Parser)
-    add_screenshot_parser(sub)
-    args = top.parse_args(argv)
-    if getattr(args, "func", None) is None:
-        return _fail("a subcommand is required: screenshot")
-    return args.func(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,15 +1,14 @@
-"""``python app.py compare``: equal-time study of estimators; ``--dask``/``--workers`` flags.
+"""``python app.py compare``: the equal-time study of estimators on one scene.
 
 ``app.py`` wires it in with::
 
-    from ui.compare_cli import add_compare_parser, maybe_distributed
-    add_compare_parser(sub, render_parser=r)   # the compare command + --dask/--workers on render
-    result = maybe_distributed(args, scene, est, settings, passes=passes, time_budget=args.time,
-                               seed=args.seed, on_pass=on_pass, error=CliError) or render(...)
+    from ui.cli.compare import add_compare_parser
+    add_compare_parser(sub)      # sets func=run_compare
 
 ``run_compare(args)`` returns the exit code; every bad input is one line ``psurf: error: ...``
 on stderr and exit code 2, before anything is rendered. Numpy/matplotlib only (no pyvista):
-the study itself is :mod:`psurf_core.study`, the cluster :mod:`psurf_core.distributed`.
+the study itself is :mod:`psurf_core.study`, the ``--dask``/``--workers``/``--jobs`` flags
+:mod:`ui.cli.parallel` (shared with ``render``).
 """
 
 from __future__ import annotations
@@ -20,15 +19,18 @@ import shlex
 import sys
 import textwrap
 
-from ui.render_cli import (
+from .common import (
+    PROG,
+    CliError,
+    fail,
     nonneg_int,
     positive_float,
     positive_int,
     scatter_int,
     shrink,
+    with_scatter,
 )
-
-PROG = "psurf"
+from .parallel import add_dask_flags
 
 #: Defaults of ``compare`` (photons per pass: small enough that the slowest photon-surface
 #: MIS sets still finish many passes in a short budget).
@@ -39,25 +41,15 @@ DEFAULT_SEED = 0
 
 
 # --------------------------------------------------------------------------- flag types
-
-
-# Numeric flag types are shared with ``render`` so both commands word their errors alike.
-_positive_int, _nonneg_int, _scatter_int = positive_int, nonneg_int, scatter_int
-_positive_float, _shrink = positive_float, shrink
+# (the numeric ones are ui.cli.common's, so every command words its errors alike)
 
 
 def _photons(text: str) -> list[int]:
     try:
-        return [_positive_int(t.strip()) for t in text.split(",")]
+        return [positive_int(t.strip()) for t in text.split(",")]
     except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(f"must be one integer > 0 or a comma-separated list "
                                          f"of them, got {text!r}") from None
-
-
-def _address(text: str) -> str:
-    if not text.strip():
-        raise argparse.ArgumentTypeError("must be a scheduler address, e.g. tcp://host:8786")
-    return text.strip()
 
 
 def _specs(text: str) -> list[str]:
@@ -74,29 +66,8 @@ def _specs(text: str) -> list[str]:
 # --------------------------------------------------------------------------- parsers
 
 
-def add_dask_flags(parser: argparse.ArgumentParser) -> None:
-    """``--dask ADDRESS`` / ``--workers N`` (mutually exclusive) on ``parser``."""
-    g = parser.add_argument_group("parallel passes (local processes or Dask; default: one "
-                                  "process, no Dask)")
-    x = g.add_mutually_exclusive_group()
-    x.add_argument("--dask", type=_address, default=None, metavar="ADDRESS",
-                   help="send passes to the Dask scheduler at ADDRESS (e.g. tcp://host:8786; "
-                        "its workers need the same psurf installed); passes are merged in "
-                        "pass order, so the image equals a single-process run")
-    x.add_argument("--workers", type=_positive_int, default=None, metavar="N",
-                   help="start a local Dask cluster of N single-threaded worker processes on "
-                        "127.0.0.1 for this command")
-    x.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
-                   help="run passes in N local worker processes (no Dask; e.g. 2 on a 2-core "
-                        "machine); merged in pass order, so the image equals a "
-                        "single-process run with as many passes (default 1: this process)")
-
-
-def add_compare_parser(subparsers, render_parser: argparse.ArgumentParser | None = None):
-    """Add the ``compare`` subcommand (``func=run_compare``); with ``render_parser``, also
-    give it the ``--dask``/``--workers`` flags (see :func:`maybe_distributed`)."""
-    if render_parser is not None:
-        add_dask_flags(render_parser)
+def add_compare_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``compare`` subcommand to ``subparsers`` (``func=run_compare``)."""
     p = subparsers.add_parser(
         "compare",
         allow_abbrev=False,
@@ -127,35 +98,35 @@ def add_compare_parser(subparsers, render_parser: argparse.ArgumentParser | None
     p.add_argument("--estimators", required=True, type=_specs, metavar="A,B,...",
                    help="estimators to compare, comma-separated; ratios are relative to the "
                         "first (e.g. beams,mis:ss-plane-uv+ss-plane-ut+ss-plane-vt)")
-    p.add_argument("--time", required=True, type=_positive_float, metavar="SECONDS",
+    p.add_argument("--time", required=True, type=positive_float, metavar="SECONDS",
                    help="wall time per run and estimator (the pass in flight finishes)")
     p.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                    help="what --time measures: wall time (default) or this process's CPU time "
                         "(robust to other load on a shared machine; not with --dask/--workers)")
-    p.add_argument("--runs", type=_positive_int, default=DEFAULT_RUNS, metavar="R",
+    p.add_argument("--runs", type=positive_int, default=DEFAULT_RUNS, metavar="R",
                    help=f"independent runs per estimator (default {DEFAULT_RUNS})")
-    p.add_argument("--seed", type=_nonneg_int, default=DEFAULT_SEED, metavar="S",
+    p.add_argument("--seed", type=nonneg_int, default=DEFAULT_SEED, metavar="S",
                    help=f"run r = 0..R-1 uses seed S + r; a rendered reference S + R "
                         f"(default {DEFAULT_SEED})")
     p.add_argument("--reference", default=None, metavar="FILE.npz",
                    help="reference image (an app.py render or compare .npz of this scene and "
                         "scatter range); default: render the path tracer first")
-    p.add_argument("--reference-time", type=_positive_float, default=None, metavar="SECONDS",
+    p.add_argument("--reference-time", type=positive_float, default=None, metavar="SECONDS",
                    help="time of the reference render (default 2 x --time x estimators)")
     p.add_argument("--photons", type=_photons, default=[DEFAULT_PHOTONS], metavar="N[,N...]",
                    help=f"photons per pass: one count for every estimator, or one per "
                         f"estimator in --estimators order (default {DEFAULT_PHOTONS})")
-    p.add_argument("--spp", type=_positive_int, default=DEFAULT_SPP, metavar="K",
+    p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
-    p.add_argument("--min-scatter", type=_scatter_int, default=None, metavar="A",
+    p.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
                    help="override the scene's [render] min_scatter (>= 1)")
-    p.add_argument("--max-scatter", type=_scatter_int, default=None, metavar="B",
+    p.add_argument("--max-scatter", type=scatter_int, default=None, metavar="B",
                    help="override the scene's [render] max_scatter (>= A, or -1: unlimited)")
-    p.add_argument("--radius", type=_positive_float, default=None, metavar="R",
+    p.add_argument("--radius", type=positive_float, default=None, metavar="R",
                    help="initial kernel radius of kernel estimators (default: per technique)")
-    p.add_argument("--radius-shrink", type=_shrink, default=1.0, metavar="ALPHA",
+    p.add_argument("--radius-shrink", type=shrink, default=1.0, metavar="ALPHA",
                    help="progressive radius reduction alpha in (0, 1] (default 1: fixed)")
-    p.add_argument("--memory-budget", type=_positive_int, default=None, metavar="MIB",
+    p.add_argument("--memory-budget", type=positive_int, default=None, metavar="MIB",
                    help="memory bound of the chunked ray x primitive work in MiB")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output directory (created if missing)")
@@ -167,25 +138,8 @@ def add_compare_parser(subparsers, render_parser: argparse.ArgumentParser | None
 # --------------------------------------------------------------------------- helpers
 
 
-def _fail(message: str) -> int:
-    print(f"{PROG}: error: {' '.join(str(message).split())}", file=sys.stderr)
-    return 2
-
-
 class _Bad(Exception):
     """A bad input found while preparing (becomes one error line, exit 2)."""
-
-
-def _with_scatter(scene, lo, hi):
-    if lo is not None and lo < 1:
-        raise _Bad(f"--min-scatter: must be >= 1, got {lo}")
-    new_lo = scene.min_scatter if lo is None else lo
-    new_hi = scene.max_scatter if hi is None else hi
-    if new_hi != -1 and new_hi < new_lo:
-        if hi is not None:
-            raise _Bad(f"--max-scatter: must be >= min_scatter ({new_lo}) or -1, got {hi}")
-        raise _Bad(f"--min-scatter: must be <= the scene's max_scatter ({new_hi}), got {lo}")
-    return scene.with_scatter(lo, hi)
 
 
 def _parse(spec: str, scene):
@@ -271,12 +225,11 @@ def _progress():
 
 
 def _command_line() -> str | None:
-    """This process's command line as typed (app.py or the module entry), else None."""
+    """This process's command line as typed (``python app.py ...``), else None."""
     prog = os.path.basename(sys.argv[0]) if sys.argv else ""
-    head = {"app.py": ["python", "app.py"], "compare_cli.py": ["python", "-m", "ui.compare_cli"]}
-    if prog not in head:
+    if prog != "app.py":
         return None
-    return " ".join(shlex.quote(a) for a in [*head[prog], *sys.argv[1:]])
+    return " ".join(shlex.quote(a) for a in ["python", "app.py", *sys.argv[1:]])
 
 
 def run_compare(args) -> int:
@@ -292,7 +245,7 @@ def run_compare(args) -> int:
             scene = load_scene(args.scene)
         except SceneError as e:
             raise _Bad(str(e)) from None
-        scene = _with_scatter(scene, args.min_scatter, args.max_scatter)
+        scene = with_scatter(scene, args.min_scatter, args.max_scatter)
         ests = [_parse(s, scene) for s in args.estimators]
         reference = None
         if args.reference is not None:
@@ -311,8 +264,8 @@ def run_compare(args) -> int:
                        f"{len(args.photons)}")
         photons = args.photons * len(ests) if len(args.photons) == 1 else args.photons
         _out_dir(args.out)
-    except _Bad as e:
-        return _fail(str(e))
+    except (_Bad, CliError) as e:
+        return fail(str(e))
 
     if args.reference is not None and args.reference_time is not None:
         print(f"{PROG}: note: --reference-time ignored: the reference is read from "
@@ -342,9 +295,9 @@ def run_compare(args) -> int:
         else:
             study = st.compare(scene, ests, args.time, **kw)
     except DistributedError as e:
-        return _fail(f"--{'dask' if args.dask is not None else 'workers'}: {e}")
+        return fail(f"--{'dask' if args.dask is not None else 'workers'}: {e}")
     except (SceneError, ValueError) as e:
-        return _fail(str(e))
+        return fail(str(e))
     finally:
         close()
 
@@ -355,7 +308,7 @@ def run_compare(args) -> int:
             st.write_reference_npz(ref_path, study, scene)
             written.append(ref_path)
     except OSError as e:
-        return _fail(f"--out {args.out}: cannot write the results ({e})")
+        return fail(f"--out {args.out}: cannot write the results ({e})")
     print()
     print(st.format_table(study))
     ref = study["reference"]
@@ -368,56 +321,3 @@ def run_compare(args) -> int:
     for p in written:
         print(p)
     return 0
-
-
-def maybe_distributed(args, scene, estimator, settings, *, passes=None, time_budget=None,
-                      seed=0, on_pass=None, accumulator=None, error=None):
-    """The render command's hook: with ``--dask``/``--workers``, render the passes on Dask
-    (:func:`psurf_core.distributed.render_distributed`) and return the ``RenderResult``; with
-    ``--jobs N > 1``, in N local processes (:func:`psurf_core.parallel.render_parallel`);
-    without them, return ``None`` (render in this process, nothing of Dask imported).
-
-    ``error`` is the exception class to raise for a cluster that cannot be used (``app.py``
-    passes its ``CliError``: one line, exit 2); ``DistributedError`` by default.
-    """
-    address, workers = getattr(args, "dask", None), getattr(args, "workers", None)
-    jobs = getattr(args, "jobs", 1) or 1
-    if address is None and workers is None and jobs > 1:
-        from psurf_core.parallel import render_parallel
-
-        return render_parallel(scene, estimator, settings, passes=passes,
-                               time_budget=time_budget, seed=seed, jobs=jobs,
-                               accumulator=accumulator, on_pass=on_pass)
-    if address is None and workers is None:
-        return None
-    from psurf_core.distributed import DistributedError, render_distributed
-
-    try:
-        return render_distributed(scene, estimator, settings, passes=passes,
-                                  time_budget=time_budget, seed=seed, address=address,
-                                  workers=workers, accumulator=accumulator, on_pass=on_pass)
-    except DistributedError as e:
-        flag = "--dask" if address is not None else "--workers"
-        if error is None:
-            raise
-        raise error(f"{flag}: {e}") from None
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Stand-alone entry (``python -m ui.compare_cli compare ...``) until ``app.py`` wires it."""
-
-    class _Parser(argparse.ArgumentParser):
-        def error(self, message):
-            raise SystemExit(_fail(message))
-
-    top = _Parser(prog=PROG)
-    sub = top.add_subparsers(dest="command", parser_class=_Parser)
-    add_compare_parser(sub)
-    args = top.parse_args(argv)
-    if getattr(args, "func", None) is None:
-        return _fail("a subcommand is required: compare")
-    return args.func(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

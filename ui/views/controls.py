@@ -6,7 +6,7 @@ Pure parts (no rendering; unit-tested in ``tests/test_window_controls.py``):
 * :func:`viewport_at`, :func:`display_to_panel`, :func:`panel_to_pixel`: a click at a display
   position (VTK's: pixels, ``x`` from the left, ``y`` from the *bottom* of the window) becomes
   the image pixel ``(X, Y)`` (column from the left, row from the top) it falls on, through the
-  image panel's parallel camera (cell layout: ``ui.image_panels``, pixel ``(X, Y)`` is the
+  image panel's parallel camera (cell layout: ``ui.views.image_panels``, pixel ``(X, Y)`` is the
   cell ``[X, X+1] x [H-Y-1, H-Y]``);
 * :func:`members` / :func:`estimator_with`: an estimator with some of its techniques disabled
   (an MIS set re-parsed as ``mis:A+B``; at least one member stays);
@@ -15,7 +15,8 @@ Pure parts (no rendering; unit-tested in ``tests/test_window_controls.py``):
 * :class:`Debouncer`: a change is applied once nothing has changed for ``delay`` seconds (a
   dragged slider or a held key rebuilds the scene once, not on every tick).
 
-Drawing parts: :class:`Controls` puts a strip of buttons and the member chips in an overlay
+The pure parts import no VTK (the drawing parts import it from :mod:`ui.views._vtk` when they
+run). Drawing parts: :class:`Controls` puts a strip of buttons and the member chips in an overlay
 renderer spanning the window (so composing a stage never erases them) and, when the plotter
 has an interactor, VTK slider widgets for the medium and the photon count.
 """
@@ -88,7 +89,7 @@ def panel_to_pixel(panel_xy, width: int, height: int, origin=(0.0, 0.0), spacing
     the panel point, or None outside the ``width x height`` image.
 
     The image's cells are squares of side ``spacing`` from ``origin`` (lower-left corner):
-    ``ui.image_panels.add_render_panel`` draws unit cells from ``(0, 0)``, the tiles of
+    ``ui.views.image_panels.add_render_panel`` draws unit cells from ``(0, 0)``, the tiles of
     ``image_panels.PanelView`` are scaled and placed side by side.
     """
     fx = math.floor((panel_xy[0] - origin[0]) / spacing)
@@ -109,7 +110,7 @@ def pixel_centre(pixel_xy, height: int, origin=(0.0, 0.0), spacing: float = 1.0)
 def image_tiles(renderer, width: int, height: int) -> list:
     """``(name, origin (x, y), spacing)`` of every ``width x height`` image (one cell per
     pixel) drawn in ``renderer``, by actor name."""
-    from vtkmodules.vtkCommonDataModel import vtkImageData
+    from ._vtk import vtkImageData
 
     out = []
     for name, actor in sorted(renderer.actors.items()):
@@ -274,7 +275,7 @@ class Controls:
     """
 
     def __init__(self, plotter, actions: dict, *, on_slider: Callable | None = None):
-        from vtkmodules.vtkRenderingCore import vtkRenderer
+        from ._vtk import vtkRenderer
 
         self.p = plotter
         self.actions = actions  # action name -> callable()
@@ -327,8 +328,7 @@ class Controls:
                 y -= 0.045
 
     def _chip(self, text, x, y, size, *, background, colour, right=False):
-        import pyvista as pv
-        from vtkmodules.vtkRenderingCore import vtkTextActor
+        from ._vtk import pv, vtkTextActor
 
         a = vtkTextActor()
         a.SetInput(text)
@@ -409,9 +409,14 @@ class Controls:
 
     def _backdrop(self, rect):
         """A white rectangle (normalised window coordinates) behind the sliders."""
-        from vtkmodules.vtkCommonCore import vtkPoints
-        from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
-        from vtkmodules.vtkRenderingCore import vtkActor2D, vtkCoordinate, vtkPolyDataMapper2D
+        from ._vtk import (
+            vtkActor2D,
+            vtkCellArray,
+            vtkCoordinate,
+            vtkPoints,
+            vtkPolyData,
+            vtkPolyDataMapper2D,
+        )
 
         x0, y0, x1, y1 = rect
         pts = vtkPoints()
@@ -435,8 +440,7 @@ class Controls:
         return actor
 
     def _slider(self, key, title, rng, value, fmt, a, b):
-        from vtkmodules.vtkInteractionWidgets import vtkSliderRepresentation2D, vtkSliderWidget
-
+        from ._vtk import vtkSliderRepresentation2D, vtkSliderWidget
         from .scene_view import OKABE_ITO, _rgb
 
         rep = vtkSliderRepresentation2D()

@@ -1,11 +1,21 @@
-"""The stage machine of the lecture: trace -> create -> intersect -> evaluate -> reconstruct.
+"""The stage machine of the window and the lecture: trace -> create -> intersect -> evaluate
+-> reconstruct, with each stage's title and caption; and the window's defaults.
 
-Plain Python (no rendering): the window asks it which stage is current and what to say.
+Plain Python (no rendering, no VTK): the window asks it which stage is current and what to
+say, and the ``screenshot`` command (:mod:`ui.cli.screenshot`) takes its stage names and
+defaults from here without importing the views.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+#: Photons per pass in the window (a 64 x 48 scene stays interactive).
+DEFAULT_PHOTONS = 2000
+#: Passes rendered before the window opens.
+DEFAULT_PASSES = 4
+#: Window size in pixels (the design size: fonts and lines scale with the height).
+DEFAULT_SIZE = (1600, 900)
 
 STAGES = ("trace", "create", "intersect", "evaluate", "reconstruct")
 

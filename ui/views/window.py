@@ -1,6 +1,6 @@
 """What the interactive window shows: its state, layout and the composition of each stage
 (and the off-screen twin, :func:`screenshot`). The bindings (keys, mouse, widgets, timer) and
-:func:`~ui.interactive.run`, which opens the window, are in :mod:`ui.interactive`.
+:func:`~ui.views.interactive.run`, which opens the window, are in :mod:`ui.views.interactive`.
 
 Layout (one pyvista Plotter, 2 x 3 grid)::
 
@@ -11,13 +11,13 @@ Layout (one pyvista Plotter, 2 x 3 grid)::
     |      title and caption    |   stage panel (numbers)   |
     +---------------------------+---------------------------+
 
-The image panels (render, variance) are ``ui.image_panels.PanelView`` tiles of a
-``ui.progressive.Progressive`` render: in the window a background worker process, polled by the
+The image panels (render, variance) are ``ui.views.image_panels.PanelView`` tiles of a
+``ui.cli.progressive.Progressive`` render: in the window a background worker process, polled by the
 timer without waiting; for :func:`screenshot` the same passes rendered in this process. With
 ``--estimators A,B`` they show A and B side by side at equal time; A is the estimator the stages
 inspect. (A :class:`ViewState` without ``prog`` (lecture mode) shows its own accumulator.)
 
-Keys (:data:`HELP`, bound by :class:`ui.interactive.App`): ``n``/``p`` next/previous stage,
+Keys (:data:`HELP`, bound by :class:`ui.views.interactive.App`): ``n``/``p`` next/previous stage,
 ``space`` play/pause, ``r`` reset, ``s`` screenshot, ``h`` help; arrows move the picked pixel,
 ``[``/``]`` choose the hit, ``+``/``-`` change the number of subpaths, ``,``/``.`` the
 inspected pass, ``c`` coverage (the pixels the selected hit's primitive reaches), ``1``..``9``
@@ -25,7 +25,7 @@ MIS members on/off, ``x X``/``a A``/``g G``/``k K`` sigma_s, sigma_a, g, photons
 the scene is rebuilt once the keys rest), ``m`` panel mode, ``v`` record a GIF, ``w`` sliders.
 Mouse: a click on the render or variance panel picks that pixel; a right click on a primitive
 in the 3D view shows its coverage; the buttons, member chips and sliders of
-:mod:`ui.controls` do the same as the keys.
+:mod:`ui.views.controls` do the same as the keys.
 
 :func:`screenshot` composes what the window shows at a stage (without the on-screen
 controls), off-screen and deterministically (same arguments, same picture: a fixed number of
@@ -39,7 +39,6 @@ import textwrap
 from dataclasses import dataclass, field
 
 import numpy as np
-import pyvista as pv
 
 from psurf_core.accumulate import Welford
 from psurf_core.estimators import parse_estimator
@@ -53,14 +52,16 @@ from psurf_core.render import RenderSettings, render
 from psurf_core.scene_io import load_scene
 
 from . import controls, hits_view, image_panels, primitives_view, scene_view
+from ._vtk import pv
 from .scene_view import FONT, FONT_SMALL, FONT_TITLE, add_text
-from .stepper import STAGES, Stepper, stage_index
-
-#: Photons per pass in the window (a 64 x 48 scene stays interactive).
-DEFAULT_PHOTONS = 2000
-#: Passes rendered before the window opens.
-DEFAULT_PASSES = 4
-DEFAULT_SIZE = (1600, 900)
+from .stepper import (
+    DEFAULT_PASSES,
+    DEFAULT_PHOTONS,
+    DEFAULT_SIZE,
+    STAGES,
+    Stepper,
+    stage_index,
+)
 
 HELP = """keys
   n / p    next / previous stage
@@ -122,8 +123,8 @@ class ViewState:
     disabled: frozenset = frozenset()
     #: The scene as loaded (the medium sliders change copies of it).
     base_scene: object = None
-    #: The window's progressive renderer (``ui.progressive.Progressive``) and its panels
-    #: (``ui.image_panels.PanelView``); None: the panels show :attr:`acc` (screenshots).
+    #: The window's progressive renderer (``ui.cli.progressive.Progressive``) and its panels
+    #: (``ui.views.image_panels.PanelView``); None: the panels show :attr:`acc` (screenshots).
     prog: object = None
     panels: object = None
     #: Image-panel mode (``image_panels.MODES``, the ``m`` key) and the estimators shown
@@ -380,7 +381,7 @@ def compose_panel(plotter: pv.Plotter, state: ViewState) -> None:
     plotter.renderer.clear_actors()
     plotter.renderer.set_background("#f2f2f2")
     add_text(plotter, panel_text(state), 0.02, 0.97, FONT_SMALL, mono=True, name="panel")
-    if state.message:  # just above the window's two rows of buttons (ui.controls)
+    if state.message:  # just above the window's two rows of buttons (ui.views.controls)
         add_text(plotter, state.message, 0.02, 0.19, FONT_SMALL, name="message",
                  colour=scene_view.OKABE_ITO["vermillion"])
 
@@ -525,10 +526,11 @@ def panel_specs(state: ViewState) -> list:
 
 
 def attach_progressive(state: ViewState, workers: int = 1, breakdown: bool = True) -> None:
-    """Render the panels progressively (``ui.progressive``: ``workers`` background processes,
+    """Render the panels progressively (``ui.cli.progressive``: ``workers`` background processes,
     0 = in the timer tick) into ``image_panels.PanelView`` tiles; starts playing."""
+    from ui.cli.progressive import Progressive
+
     from .image_panels import PanelView
-    from .progressive import Progressive
 
     state.prog = Progressive(state.scene, panel_specs(state), state.settings, seed=state.seed,
                              workers=workers, breakdown=breakdown)

@@ -3,10 +3,10 @@ breakdown`` (the per-technique, weight and per-scatter-count PNGs of an MIS set)
 
 ``app.py`` wires them in with::
 
-    from ui.record_cli import add_record_parsers
+    from ui.cli.record import add_record_parsers
     add_record_parsers(sub)        # record (func=run_record), breakdown (func=run_breakdown)
 
-Both render in this process, deterministically (``ui.progressive.Progressive`` with
+Both render in this process, deterministically (:class:`ui.cli.progressive.Progressive` with
 ``workers=0``): pass ``i`` of every estimator is seeded by ``SeedSequence([seed, i])``, so the
 same command gives the same frames. ``--passes N`` gives every estimator N passes (one frame
 per round, or per ``--every`` rounds); ``--time S`` gives every estimator S seconds (equal
@@ -15,28 +15,28 @@ the machine).
 
 Every bad input is one line ``psurf: error: ...`` on stderr and exit code 2, before anything is
 rendered; outputs are written under temporary names and moved into place at the end, so a
-failure or Ctrl-C leaves nothing half-written.
+failure or Ctrl-C leaves nothing half-written. The frames are drawn off-screen by
+:class:`ui.views.image_panels.FigureMaker`, imported (with VTK) only once the inputs are checked.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
 
-from ui.cli import _pair, _pixel
-from ui.render_cli import (
+from .common import (
     CliError,
     check_output,
     load_scene,
     nonneg_int,
+    pair,
     parse_estimator_flag,
+    pixel,
     positive_float,
     positive_int,
     write_all,
 )
 
-PROG = "psurf"
 MODES = ("render", "techniques", "bounces")
 DEFAULT_PHOTONS = 1000
 DEFAULT_FPS = 4.0
@@ -58,7 +58,7 @@ def _specs(text: str) -> list[str]:
 
 
 def _size(text: str) -> tuple[int, int]:
-    return _pair(text, "W,H (two integers >= 160)", 160)
+    return pair(text, "W,H (two integers >= 160)", 160)
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -100,7 +100,7 @@ def add_record_parsers(sub) -> None:
                    help="one frame every K rounds of passes (default: 1)")
     r.add_argument("--fps", type=positive_float, default=DEFAULT_FPS,
                    help=f"frames per second (default: {DEFAULT_FPS:g})")
-    r.add_argument("--pixel", type=_pixel, default=None, metavar="X,Y",
+    r.add_argument("--pixel", type=pixel, default=None, metavar="X,Y",
                    help="outline this pixel on the render panels")
     r.add_argument("--reference", default=None, metavar="FILE.npz",
                    help="reference image (app.py render .npz): relMSE per estimator")
@@ -165,10 +165,10 @@ def _writer_check(out: str) -> str:
 
 def _offscreen():
     try:
-        import pyvista
+        from ui.views._vtk import pv
 
-        pyvista.OFF_SCREEN = True
-        from ui.image_panels import FigureMaker
+        pv.OFF_SCREEN = True
+        from ui.views.image_panels import FigureMaker
     except (ImportError, RuntimeError) as e:
         raise CliError(f"off-screen rendering is unavailable ({type(e).__name__}: {e}); it "
                        "needs VTK with EGL or OSMesa (libegl1 / libosmesa6)") from None
@@ -242,7 +242,7 @@ def run_record(args) -> int:
 
         reference = load_reference(args.reference, scene).mean  # SceneError: one line
     FigureMaker = _offscreen()
-    from ui.progressive import Progressive
+    from .progressive import Progressive
 
     prog = Progressive(scene, specs, RenderSettings(photons=args.photons), seed=args.seed,
                        workers=0, breakdown=args.mode != "render",
@@ -304,7 +304,7 @@ def run_breakdown(args) -> int:
         raise CliError(f"--out {out}: exists and is not a directory")
     scene, ests = _scene_and_estimators(args, [args.estimator], True)
     FigureMaker = _offscreen()
-    from ui.progressive import Progressive
+    from .progressive import Progressive
 
     prog = Progressive(scene, [args.estimator], RenderSettings(photons=args.photons),
                        seed=args.seed, workers=0, breakdown=True)
@@ -364,24 +364,3 @@ def run_breakdown(args) -> int:
     for path, _ in jobs:
         print(path)
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Stand-alone entry (``python -m ui.record_cli record ...``)."""
-    from ui.render_cli import Parser
-
-    top = Parser(prog=PROG)
-    sub = top.add_subparsers(dest="command", parser_class=Parser)
-    add_record_parsers(sub)
-    try:
-        args = top.parse_args(argv)
-        if getattr(args, "func", None) is None:
-            raise CliError("a subcommand is required: record or breakdown")
-        return args.func(args)
-    except CliError as e:
-        print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -2,8 +2,8 @@
 
 Subpaths are polylines clipped to the medium box (``PhotonPaths.clip``), one colour per scatter
 event. Primitives are drawn as geometry clipped to the box, one colour per family
-(:data:`ui.scene_view.FAMILY_COLOURS`): points as spheres of the kernel radius, beams as tubes,
-planes and light copies as polygons, and spheres, cones, cylinders, disks and surfaces of
+(:data:`ui.views.scene_view.FAMILY_COLOURS`): points as spheres of the kernel radius, beams as
+tubes, planes and light copies as polygons, and spheres, cones, cylinders, disks and surfaces of
 revolution as parametric surfaces. A family the drawer does not know (or whose data layout
 changed) falls back to its primitives' bounding boxes, and the legend says so.
 """
@@ -11,8 +11,8 @@ changed) falls back to its primitives' bounding boxes, and the legend says so.
 from __future__ import annotations
 
 import numpy as np
-import pyvista as pv
 
+from ._vtk import pv
 from .scene_view import (
     FONT,
     FONT_SMALL,
@@ -434,7 +434,7 @@ COVERAGE_EDGE = "#0072B2"  # Okabe-Ito blue
 
 def coverage_mesh(mask: np.ndarray):
     """The covered pixels of an ``(H, W)`` bool mask (row 0 at the top) as panel cells
-    (pixel ``(X, Y)`` is the cell ``[X, X+1] x [H-Y-1, H-Y]``, as in ``ui.image_panels``), and
+    (pixel ``(X, Y)`` is the cell ``[X, X+1] x [H-Y-1, H-Y]``, as in ``ui.views.image_panels``), and
     the outline of the covered region (the cell edges between a covered and an uncovered
     pixel, or the image border).
 

@@ -4,7 +4,8 @@ is the one the checkpoint was made with, the pass/time budget of a resumed sessi
 Ctrl-C or a failure saves.
 
 The file format and its atomic write are :mod:`psurf_core.checkpoint`'s; this module is the
-command-line side (every bad input is one :class:`~ui.render_cli.CliError`).
+command-line side (every bad input is one :class:`~ui.cli.common.CliError`). It imports only
+:mod:`ui.cli.common` of the commands' modules; :mod:`ui.cli.render` imports it.
 """
 
 from __future__ import annotations
@@ -13,8 +14,7 @@ import os
 import sys
 import time
 
-from .render_cli import (
-    DEFAULT_PASSES,
+from .common import (
     EXIT_INTERRUPTED,
     PROG,
     CliError,
@@ -32,6 +32,7 @@ IDENTITY_FLAGS = {
 
 
 def describe_difference(key: str, saved, current, scene_file: str) -> str:
+    """One clause saying how the checkpoint's identity ``key`` differs from this command's."""
     if key == "scene_sha256":
         return (f"the scene file {scene_file} is not the one the checkpoint was made from "
                 f"(SHA-256 {str(current)[:12]}..., checkpoint {str(saved)[:12]}...)")
@@ -114,6 +115,7 @@ def checkpoint_dir_ok(flag: str, directory: str, must_be_empty: bool) -> None:
 
 
 def same_dir(a: str, b: str) -> bool:
+    """Whether the paths ``a`` and ``b`` name the same directory."""
     return os.path.abspath(a) == os.path.abspath(b) or (
         os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b))
 
@@ -139,21 +141,24 @@ def load_resume(args, identity: dict):
     return ck
 
 
-def session_budget(args, ck):
-    """``(passes, time_budget)`` of this session (see the ``render`` help on resuming)."""
+def session_budget(args, ck, default_passes: int):
+    """``(passes, time_budget)`` of this session (see the ``render`` help on resuming).
+
+    ``default_passes`` is ``render``'s ``--passes`` default: the budget of a fresh render
+    without ``--passes``/``--time``, and of a resumed one whose checkpoint saved none.
+    """
     if args.passes is not None or args.time is not None:
         if ck is not None and args.passes is not None and ck.accumulator.n > args.passes:
             raise CliError(f"--passes {args.passes}: the checkpoint in {args.resume} already "
                            f"holds {ck.accumulator.n} passes")
         return args.passes, args.time
     if ck is None:
-        return DEFAULT_PASSES, None
+        return default_passes, None
     saved = ck.meta.get("budget") or {}
     if saved.get("time") is not None:
         left = float(saved["time"]) - ck.seconds
         return (None, left) if left > 0 else (ck.accumulator.n, None)
-    return max(int(saved.get("passes") or DEFAULT_PASSES), ck.accumulator.n), None
-
+    return max(int(saved.get("passes") or default_passes), ck.accumulator.n), None
 
 
 def report_interrupt(ckpt: Checkpointer | None, args) -> int:
@@ -179,6 +184,7 @@ def report_interrupt(ckpt: Checkpointer | None, args) -> int:
 
 
 def save_on_failure(ckpt: Checkpointer | None) -> str:
+    """Save the completed passes after a failure; the clause the error line adds (or "")."""
     if ckpt is None:
         return ""
     try:

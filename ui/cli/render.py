@@ -1,13 +1,15 @@
-"""``python app.py render``: the render command and the CLI helpers that ``app.py``'s other
-commands share (flag types, one-line errors, atomic output writes); the checkpoint machinery
-is in :mod:`ui.render_checkpoint`.
+"""``python app.py render``: render a scene progressively to .npz (and .png/.exr).
 
-No pyvista here: only argparse, numpy and :mod:`psurf_core`. ``app.py`` wires it in with::
+The command (:func:`add_render_parser`, :func:`cmd_render`), its defaults, and the ``.npz`` it
+writes (:func:`npz_payload`, also used by ``demo``). The flag types and helpers it shares with
+the other commands are :mod:`ui.cli.common`'s, the checkpoints :mod:`ui.cli.checkpoint`'s and
+``--dask``/``--workers``/``--jobs`` :mod:`ui.cli.parallel`'s. No pyvista here: only argparse,
+numpy and :mod:`psurf_core`. ``app.py`` wires it in with::
 
-    from ui.render_cli import add_render_parser
+    from ui.cli.render import add_render_parser
     add_render_parser(subparsers, estimators_help)      # sets func=cmd_render
 
-Every bad input raises :class:`CliError` (``app.main`` prints it as one
+Every bad input raises :class:`~ui.cli.common.CliError` (``app.main`` prints it as one
 ``psurf: error: ...`` line, exit code 2) before anything is written.
 
 Checkpoints (``--checkpoint DIR``, ``--checkpoint-every SECONDS``, ``--resume DIR``): the
@@ -22,16 +24,45 @@ checkpoint made with another scene file, estimator, seed or setting.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import math
 import os
-import signal
 import sys
 import textwrap
 
 import numpy as np
 
-PROG = "psurf"
+from .checkpoint import (
+    Checkpointer,
+    checkpoint_dir_ok,
+    load_resume,
+    report_interrupt,
+    same_dir,
+    save_on_failure,
+    session_budget,
+)
+from .common import (
+    PROG,
+    CliError,
+    check_output,
+    load_scene,
+    nonempty_path,
+    nonneg_float,
+    nonneg_int,
+    note,
+    note_scatter_range,
+    npz_writer,
+    parse_estimator_flag,
+    plural,
+    png_writer,
+    positive_float,
+    positive_int,
+    progress,
+    scatter_int,
+    shrink,
+    sigint_deferred,
+    with_scatter,
+    write_all,
+)
+from .parallel import add_dask_flags, maybe_distributed
 
 #: Defaults of ``render`` (a 64x48 scene shows a recognisable image in a few seconds).
 DEFAULT_PHOTONS = 4000
@@ -39,81 +70,6 @@ DEFAULT_SPP = 1
 DEFAULT_PASSES = 8
 DEFAULT_SEED = 0
 DEFAULT_CHECKPOINT_EVERY = 60.0
-
-#: Exit code after Ctrl-C (128 + SIGINT, as shells report it).
-EXIT_INTERRUPTED = 130
-
-
-class CliError(Exception):
-    """A bad command line or input: printed as one ``psurf: error:`` line, exit code 2."""
-
-
-class Parser(argparse.ArgumentParser):
-    """``ArgumentParser`` whose errors are :class:`CliError` (one line, exit 2, no usage)."""
-
-    def error(self, message: str):  # noqa: D102 - argparse hook
-        raise CliError(message)
-
-
-# --------------------------------------------------------------------------- flag types
-
-
-def _int_flag(text: str, ok, what: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
-    if not ok(v):
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
-    return v
-
-
-def positive_int(text: str) -> int:
-    return _int_flag(text, lambda v: v > 0, "an integer > 0")
-
-
-def nonneg_int(text: str) -> int:
-    return _int_flag(text, lambda v: v >= 0, "an integer >= 0")
-
-
-def scatter_int(text: str) -> int:
-    return _int_flag(text, lambda v: v >= 1 or v == -1, "an integer >= 1 or -1")
-
-
-def positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return v
-
-
-def nonneg_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}") from None
-    if not (math.isfinite(v) and v >= 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
-    return v
-
-
-def shrink(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}") from None
-    if not 0.0 < v <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}")
-    return v
-
-
-def nonempty_path(text: str) -> str:
-    if not text.strip():
-        raise argparse.ArgumentTypeError("must be a path, got an empty string")
-    return text
 
 
 # --------------------------------------------------------------------------- parser
@@ -191,76 +147,16 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
     r.add_argument("--resume", type=nonempty_path, default=None, metavar="DIR",
                    help="continue the render saved in DIR/checkpoint.npz (same scene file, "
                         "estimator, seed and settings) and keep checkpointing into DIR")
+    add_dask_flags(r)
     r.set_defaults(func=cmd_render)
     return r
 
 
-# --------------------------------------------------------------------------- shared helpers
-
-
-def check_output(flag: str, path: str) -> None:
-    """The directory of ``path`` must exist, and ``path`` must not be a directory."""
-    if not path:
-        raise CliError(f"{flag}: empty path")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise CliError(f"{flag} {path}: output directory does not exist: "
-                       f"{os.path.dirname(path) or '.'}")
-    if os.path.isdir(path):
-        raise CliError(f"{flag} {path}: is a directory")
-    if not os.access(folder, os.W_OK):
-        raise CliError(f"{flag} {path}: output directory is not writable")
-
-
-def load_scene(path: str):
-    from psurf_core import load_scene as _load
-
-    return _load(path)  # SceneError propagates (one line, names file and key)
-
-
-def parse_estimator_flag(spec: str, scene):
-    """Parse ``--estimator`` (unknown names and inapplicable techniques become CliError)."""
-    from psurf_core import SceneError, parse_estimator
-    from psurf_core.techniques import UnknownTechnique
-
-    try:
-        return parse_estimator(spec, scene)
-    except SceneError:
-        raise
-    except UnknownTechnique as e:
-        raise CliError(f"--estimator: {e} (see 'python app.py --help')") from None
-    except ModuleNotFoundError as e:
-        raise CliError(f"--estimator {spec!r}: not available in this build ({e})") from None
-    except ValueError as e:  # e.g. a malformed mis: spec
-        raise CliError(f"--estimator {spec!r}: {e}") from None
-
-
-def progress(desc: str, passes: int | None, seconds: float | None, start: int = 0):
-    """``(on_pass, close)`` showing a tqdm bar on stderr when it is a terminal."""
-    if not sys.stderr.isatty():
-        return None, lambda: None
-    from tqdm import tqdm
-
-    if passes is not None:
-        bar = tqdm(total=passes, initial=start, desc=desc, unit="pass", file=sys.stderr,
-                   leave=False)
-
-        def on_pass(i, acc, elapsed):
-            bar.update(1)
-
-    else:
-        bar = tqdm(total=seconds, desc=desc, file=sys.stderr, leave=False,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s{postfix}")
-
-        def on_pass(i, acc, elapsed):
-            bar.n = min(elapsed, seconds)
-            bar.set_postfix_str(plural(acc.n, "pass"), refresh=False)
-            bar.refresh()
-
-    return on_pass, bar.close
+# --------------------------------------------------------------------------- output
 
 
 def initial_radius(estimator, scene, settings) -> float:
+    """The largest pass-0 kernel radius of the estimator's techniques (0.0: no kernel)."""
     from psurf_core.render import kernel_radius
 
     radii = [kernel_radius(t, scene, settings, 0) for t in estimator.techniques
@@ -269,6 +165,8 @@ def initial_radius(estimator, scene, settings) -> float:
 
 
 def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict:
+    """The arrays of a render ``.npz`` (``mean``, ``var``, counts, ``radius``, provenance),
+    updated with ``extra``."""
     from psurf_core import __version__
 
     data = {
@@ -291,111 +189,14 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
     return data
 
 
-def _tmp_name(path: str) -> str:
-    folder, base = os.path.split(os.path.abspath(path))
-    stem, ext = os.path.splitext(base)
-    return os.path.join(folder, f".{stem}.{os.getpid()}.tmp{ext}")
-
-
-def write_all(jobs: list) -> None:
-    """Write every ``(path, writer)`` to a temporary name, then move all into place.
-
-    A failure leaves none of the outputs (nor temporary files) behind.
-    """
-    temps = []
-    try:
-        for path, writer in jobs:
-            tmp = _tmp_name(path)
-            temps.append((tmp, path))
-            writer(tmp)
-        for tmp, path in temps:
-            os.replace(tmp, path)
-    finally:
-        for tmp, _ in temps:
-            if os.path.exists(tmp):
-                os.remove(tmp)
-
-
-def npz_writer(data: dict):
-    def write(tmp: str) -> None:
-        with open(tmp, "wb") as f:  # a file object: savez adds no ".npz" suffix
-            np.savez_compressed(f, **data)
-
-    return write
-
-
-def png_writer(linear_rgb):
-    from psurf_core import images
-
-    def write(tmp: str) -> None:
-        images.write_png(tmp, images.tone_map(linear_rgb), atomic=False)
-
-    return write
-
-
-def plural(n: int, word: str) -> str:
-    return f"{n} {word}" + ("" if n == 1 else "es" if word.endswith("s") else "s")
-
-
-def note(text: str) -> None:
-    print(f"{PROG}: note: {text}", file=sys.stderr)
-
-
-def with_scatter(scene, lo: int | None, hi: int | None):
-    """Apply ``--min-scatter/--max-scatter`` and check the combined range."""
-    if lo is not None and lo < 1:
-        raise CliError(f"--min-scatter: must be >= 1, got {lo}")
-    new_lo = scene.min_scatter if lo is None else lo
-    new_hi = scene.max_scatter if hi is None else hi
-    if new_hi != -1 and new_hi < new_lo:
-        if hi is not None:
-            raise CliError(f"--max-scatter: must be >= min_scatter ({new_lo}) or -1, got {hi}")
-        raise CliError(f"--min-scatter: must be <= the scene's max_scatter ({new_hi}), got {lo}")
-    return scene.with_scatter(lo, hi)
-
-
-def note_scatter_range(est, scene) -> None:
-    """Warn when the estimator covers none of the scatter range (a black image)."""
-    if est.reference or not est.techniques or scene.max_scatter == -1:
-        return
-    if all(t.min_k > scene.max_scatter for t in est.techniques):
-        k = min(t.min_k for t in est.techniques)
-        note(f"estimator '{est.spec}' estimates K >= {k} scattering events only; the scatter "
-             f"range [{scene.min_scatter}, {scene.max_scatter}] gives a black image")
-
-
-@contextlib.contextmanager
-def sigint_deferred():
-    """Ignore Ctrl-C while files are moved into place (main thread only; else a no-op)."""
-    try:
-        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, old)
-
-
 # --------------------------------------------------------------------------- render
 
 
 def cmd_render(args) -> int:
-    # Checkpoint machinery lives beside this module and imports its helpers: imported here.
+    """Run ``render``; returns 0, 1 (an internal error) or 130 (Ctrl-C), or raises CliError."""
     from psurf_core import RenderSettings
     from psurf_core.checkpoint import render_identity
     from psurf_core.render import RenderResult, render
-
-    from .render_checkpoint import (
-        Checkpointer,
-        checkpoint_dir_ok,
-        load_resume,
-        report_interrupt,
-        same_dir,
-        save_on_failure,
-        session_budget,
-    )
 
     check_output("--out", args.out)
     if args.png is not None:
@@ -431,7 +232,7 @@ def cmd_render(args) -> int:
     ck_dir = args.checkpoint if args.checkpoint is not None else args.resume
     identity = render_identity(args.scene, scene, est, settings, args.seed) if ck_dir else None
     ck = load_resume(args, identity) if args.resume is not None else None
-    passes, time_budget = session_budget(args, ck)
+    passes, time_budget = session_budget(args, ck, DEFAULT_PASSES)
 
     # Every input is valid (notes come only now, so that an error is the only line).
     note_scatter_range(est, scene)
@@ -468,8 +269,6 @@ def cmd_render(args) -> int:
             result = RenderResult(acc.mean.copy(), acc.variance, acc.n, settings.photons,
                                   settings.spp, 0.0, est.spec, args.seed, acc)
         else:
-            from ui.compare_cli import maybe_distributed  # --dask / --workers
-
             kw = dict(passes=passes, time_budget=time_budget, seed=args.seed, accumulator=acc,
                       on_pass=on_pass)
             result = (maybe_distributed(args, scene, est, settings, error=CliError, **kw)

@@ -2,8 +2,8 @@
 
 Usage (the window)::
 
-    from ui.progressive import Progressive
-    from ui.image_panels import PanelView, next_mode, MODES, MODE_HELP
+    from ui.cli.progressive import Progressive
+    from ui.views.image_panels import PanelView, next_mode, MODES, MODE_HELP
 
     prog = Progressive(scene, ["planes", "paper-multi"], RenderSettings(photons=2000),
                        seed=0, workers=1, breakdown=True)  # spawns the worker (~1 s to start)
@@ -28,7 +28,7 @@ Usage (the window)::
 ``panels.draw`` rebuilds its actors by itself when the mode, the layout or the window size
 changed, or when ``compose()`` cleared the subplots; otherwise it only updates pixel values,
 colour ranges and texts (~3 ms; a rebuild ~15-60 ms). The tiles are ``ImageData`` with an
-origin and a spacing, so ``ui.controls.pick_pixel`` finds the clicked pixel on any of them.
+origin and a spacing, so ``ui.views.controls.pick_pixel`` finds the clicked pixel on any of them.
 In software OpenGL (no GPU) VTK's default 4x multisampling makes every ``plotter.render()``
 of the 1600 x 900 window ~200 ms instead of ~60 ms: the window may want
 ``plotter.ren_win.SetMultiSamples(0)`` (``benchmarks/ui_frames.py`` measures both).

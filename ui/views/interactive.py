@@ -2,8 +2,8 @@
 steps) and :func:`run`, which opens the window.
 
 What the window shows (layout, composition of each stage, the off-screen
-:func:`ui.window.screenshot`) lives in :mod:`ui.window`; this module owns only what a person
-(or a test script) does to it. Keys are listed in :data:`ui.window.HELP`.
+:func:`ui.views.window.screenshot`) lives in :mod:`ui.views.window`; this module owns only what
+a person (or a test script) does to it. Keys are listed in :data:`ui.views.window.HELP`.
 """
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ import time
 from dataclasses import replace
 
 import numpy as np
-import pyvista as pv
 
 from psurf_core.estimators import parse_estimator
 from psurf_core.render import render, render_pass
 
 from . import controls, primitives_view
+from ._vtk import pv, vtkCellPicker
 from .window import (
     CELL_3D,
     CELL_RENDER,
@@ -223,8 +223,6 @@ class App:
     def pick_primitive(self, display_xy):
         """A right click in the 3D view: the primitive drawn under it becomes the coverage
         target (``(technique, batch, prim)``), or None when there is none."""
-        from vtkmodules.vtkRenderingCore import vtkCellPicker
-
         vps = [r.GetViewport() for r in self.p.renderers]
         i = controls.viewport_at(display_xy, self.p.window_size, vps)
         if i != self.p.renderers.loc_to_index(CELL_3D):
@@ -445,10 +443,10 @@ class App:
 
     def toggle_record(self) -> None:
         """Start / stop recording the window (a GIF of every new progressive frame, written
-        with ``ui.record_cli``'s atomic animation writer)."""
+        with ``ui.cli.record``'s atomic animation writer)."""
         s = self.s
         if self.recorder is None:
-            from .record_cli import _Animation
+            from ui.cli.record import _Animation
 
             out = os.path.abspath(f"psurf-record-{time.strftime('%Y%m%d-%H%M%S')}.gif")
             self.recorder = _Animation(out, ".gif", fps=5.0)

@@ -1,0 +1,71 @@
+"""Parallel passes, shared by ``render`` and ``compare``: the ``--dask ADDRESS`` /
+``--workers N`` / ``--jobs N`` flags (:func:`add_dask_flags`) and the render command's hook
+(:func:`maybe_distributed`).
+
+Passes are merged in pass order wherever they ran, so the image equals a single-process run.
+Nothing of Dask is imported unless ``--dask``/``--workers`` is given (the cluster is
+:mod:`psurf_core.distributed`, the local process pool :mod:`psurf_core.parallel`).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from .common import positive_int
+
+
+def _address(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must be a scheduler address, e.g. tcp://host:8786")
+    return text.strip()
+
+
+def add_dask_flags(parser: argparse.ArgumentParser) -> None:
+    """``--dask ADDRESS`` / ``--workers N`` (mutually exclusive) on ``parser``."""
+    g = parser.add_argument_group("parallel passes (local processes or Dask; default: one "
+                                  "process, no Dask)")
+    x = g.add_mutually_exclusive_group()
+    x.add_argument("--dask", type=_address, default=None, metavar="ADDRESS",
+                   help="send passes to the Dask scheduler at ADDRESS (e.g. tcp://host:8786; "
+                        "its workers need the same psurf installed); passes are merged in "
+                        "pass order, so the image equals a single-process run")
+    x.add_argument("--workers", type=positive_int, default=None, metavar="N",
+                   help="start a local Dask cluster of N single-threaded worker processes on "
+                        "127.0.0.1 for this command")
+    x.add_argument("--jobs", type=positive_int, default=1, metavar="N",
+                   help="run passes in N local worker processes (no Dask; e.g. 2 on a 2-core "
+                        "machine); merged in pass order, so the image equals a "
+                        "single-process run with as many passes (default 1: this process)")
+
+
+def maybe_distributed(args, scene, estimator, settings, *, passes=None, time_budget=None,
+                      seed=0, on_pass=None, accumulator=None, error=None):
+    """The render command's hook: with ``--dask``/``--workers``, render the passes on Dask
+    (:func:`psurf_core.distributed.render_distributed`) and return the ``RenderResult``; with
+    ``--jobs N > 1``, in N local processes (:func:`psurf_core.parallel.render_parallel`);
+    without them, return ``None`` (render in this process, nothing of Dask imported).
+
+    ``error`` is the exception class to raise for a cluster that cannot be used (``app.py``
+    passes its ``CliError``: one line, exit 2); ``DistributedError`` by default.
+    """
+    address, workers = getattr(args, "dask", None), getattr(args, "workers", None)
+    jobs = getattr(args, "jobs", 1) or 1
+    if address is None and workers is None and jobs > 1:
+        from psurf_core.parallel import render_parallel
+
+        return render_parallel(scene, estimator, settings, passes=passes,
+                               time_budget=time_budget, seed=seed, jobs=jobs,
+                               accumulator=accumulator, on_pass=on_pass)
+    if address is None and workers is None:
+        return None
+    from psurf_core.distributed import DistributedError, render_distributed
+
+    try:
+        return render_distributed(scene, estimator, settings, passes=passes,
+                                  time_budget=time_budget, seed=seed, address=address,
+                                  workers=workers, accumulator=accumulator, on_pass=on_pass)
+    except DistributedError as e:
+        flag = "--dask" if address is not None else "--workers"
+        if error is None:
+            raise
+        raise error(f"{flag}: {e}") from None
