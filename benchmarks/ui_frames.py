@@ -52,7 +52,7 @@ def _stats(ms: list[float]) -> dict:
 
 
 def run(args) -> dict:
-    import pyvista as pv
+    from ui.views._vtk import pv
 
     pv.OFF_SCREEN = True
     from psurf_core.render import RenderSettings, render_pass

@@ -121,16 +121,19 @@ def add_text(plotter, text: str, x: float, y: float, size: float, *, mono: bool 
 
 
 def family_colour(family: str) -> str:
+    """The colour of a primitive family (``Technique.family``); grey when it has none."""
     return FAMILY_COLOURS.get(family, FALLBACK_COLOUR)
 
 
 # --------------------------------------------------------------------------- geometry
 def box_mesh(lo, hi) -> pv.PolyData:
+    """The axis-aligned box with corners ``lo`` and ``hi``."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     return pv.Box(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
 
 
 def medium_bounds(scene: Scene) -> tuple:
+    """The medium box as ``(xmin, xmax, ymin, ymax, zmin, zmax)`` (pyvista's bounds)."""
     lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
     return (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])
 
@@ -150,6 +153,7 @@ def triangles_mesh(tris: np.ndarray) -> pv.PolyData:
 
 
 def polyline(points: np.ndarray) -> pv.PolyData:
+    """The polyline through ``points`` (N, 3); a single point when N < 2."""
     pts = np.asarray(points, float)
     return pv.lines_from_points(pts) if len(pts) > 1 else pv.PolyData(pts)
 

@@ -377,6 +377,7 @@ def compose(plotter: pv.Plotter, state: ViewState, *, keep_camera: bool = False)
 
 
 def compose_panel(plotter: pv.Plotter, state: ViewState) -> None:
+    """Draw the stage panel: the numbers of the current stage and the status message."""
     plotter.subplot(*CELL_PANEL)
     plotter.renderer.clear_actors()
     plotter.renderer.set_background("#f2f2f2")
@@ -392,6 +393,8 @@ def _clear_bars(plotter: pv.Plotter) -> None:
 
 
 def compose_images(plotter: pv.Plotter, state: ViewState) -> None:
+    """Draw the render and variance panels (the progressive tiles when ``state.prog`` is set,
+    else ``state.acc``)."""
     if state.prog is not None:
         _compose_progressive(plotter, state)
         return
@@ -434,6 +437,7 @@ def _compose_progressive(plotter: pv.Plotter, state: ViewState) -> None:
 
 
 def make_plotter(size=DEFAULT_SIZE, off_screen: bool = False) -> pv.Plotter:
+    """The window's plotter: the 2 x 3 grid of the layout, white, FreeType text."""
     scene_view.plain_text()
     p = pv.Plotter(window_size=list(size), off_screen=off_screen, border=False, **_GRID)
     p.set_background("white", all_renderers=True)
