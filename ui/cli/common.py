@@ -1,5 +1,6 @@
 """What every ``python app.py`` command shares: the one-line error, the flag types, atomic
-output writes, the progress bar and the small checks of scene, estimator and scatter range.
+output writes (files and animations; the window's recorder uses :class:`Animation` too), the
+progress bar and the small checks of scene, estimator and scatter range.
 
 It imports none of the commands (they import it), no pyvista and nothing of
 :mod:`psurf_core` at module level (``app.py --help`` stays quick). Every bad input raises
@@ -293,3 +294,60 @@ def sigint_deferred():
         yield
     finally:
         signal.signal(signal.SIGINT, old)
+
+
+def _pad16(frame):
+    """Pad to a multiple of 16 pixels (white): H.264 wants even sizes, and imageio would
+    otherwise resize with a warning."""
+    h, w = frame.shape[:2]
+    ph, pw = -h % 16, -w % 16
+    if not (ph or pw):
+        return frame
+    return np.pad(frame, ((0, ph), (0, pw), (0, 0)), constant_values=255)
+
+
+class Animation:
+    """A GIF or MP4 written atomically: frames stream to a temporary file in the target's
+    folder, :meth:`commit` moves it into place, :meth:`abort` removes it (``record`` and the
+    window's ``v`` key).
+
+    Parameters
+    ----------
+    out : str
+        The animation to write.
+    ext : str
+        ``".gif"``, or ``".mp4"`` (H.264 through imageio-ffmpeg; frames padded to 16 px).
+    fps : float
+        Frames per second.
+    """
+
+    def __init__(self, out: str, ext: str, fps: float):
+        import imageio.v2 as iio2
+
+        folder, base = os.path.split(os.path.abspath(out))
+        self.out = out
+        self.tmp = os.path.join(folder, f".{base}.{os.getpid()}.tmp{ext}")
+        self.frames = 0
+        if ext == ".gif":
+            self.w = iio2.get_writer(self.tmp, mode="I", duration=1000.0 / fps, loop=0)
+            self.pad = False
+        else:
+            self.w = iio2.get_writer(self.tmp, format="FFMPEG", fps=fps, codec="libx264",
+                                     pixelformat="yuv420p", quality=8, macro_block_size=16)
+            self.pad = True
+
+    def add(self, frame) -> None:
+        self.w.append_data(_pad16(frame) if self.pad else frame)
+        self.frames += 1
+
+    def commit(self) -> None:
+        self.w.close()
+        os.replace(self.tmp, self.out)
+
+    def abort(self) -> None:
+        try:
+            self.w.close()
+        except Exception:
+            pass
+        if os.path.exists(self.tmp):
+            os.remove(self.tmp)

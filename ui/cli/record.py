@@ -25,6 +25,7 @@ import argparse
 import os
 
 from .common import (
+    Animation,
     CliError,
     check_output,
     load_scene,
@@ -175,53 +176,6 @@ def _offscreen():
     return FigureMaker
 
 
-def _pad16(frame):
-    """Pad to a multiple of 16 pixels (white): H.264 wants even sizes, and imageio would
-    otherwise resize with a warning."""
-    import numpy as np
-
-    h, w = frame.shape[:2]
-    ph, pw = -h % 16, -w % 16
-    if not (ph or pw):
-        return frame
-    return np.pad(frame, ((0, ph), (0, pw), (0, 0)), constant_values=255)
-
-
-class _Animation:
-    """Frames streamed to a temporary file; :meth:`commit` moves it into place."""
-
-    def __init__(self, out: str, ext: str, fps: float):
-        import imageio.v2 as iio2
-
-        folder, base = os.path.split(os.path.abspath(out))
-        self.out = out
-        self.tmp = os.path.join(folder, f".{base}.{os.getpid()}.tmp{ext}")
-        self.frames = 0
-        if ext == ".gif":
-            self.w = iio2.get_writer(self.tmp, mode="I", duration=1000.0 / fps, loop=0)
-            self.pad = False
-        else:
-            self.w = iio2.get_writer(self.tmp, format="FFMPEG", fps=fps, codec="libx264",
-                                     pixelformat="yuv420p", quality=8, macro_block_size=16)
-            self.pad = True
-
-    def add(self, frame) -> None:
-        self.w.append_data(_pad16(frame) if self.pad else frame)
-        self.frames += 1
-
-    def commit(self) -> None:
-        self.w.close()
-        os.replace(self.tmp, self.out)
-
-    def abort(self) -> None:
-        try:
-            self.w.close()
-        except Exception:
-            pass
-        if os.path.exists(self.tmp):
-            os.remove(self.tmp)
-
-
 # --------------------------------------------------------------------------- record
 
 
@@ -248,7 +202,7 @@ def run_record(args) -> int:
                        workers=0, breakdown=args.mode != "render",
                        max_seconds=args.time)
     fm = FigureMaker(args.size)
-    anim = _Animation(args.out, ext, args.fps)
+    anim = Animation(args.out, ext, args.fps)
     kw = dict(reference=reference, technique=args.technique, k=args.k)
     try:
         if args.passes is not None:

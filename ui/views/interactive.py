@@ -443,13 +443,13 @@ class App:
 
     def toggle_record(self) -> None:
         """Start / stop recording the window (a GIF of every new progressive frame, written
-        with ``ui.cli.record``'s atomic animation writer)."""
+        with :class:`ui.cli.common.Animation`, the atomic writer ``record`` uses)."""
         s = self.s
         if self.recorder is None:
-            from ui.cli.record import _Animation
+            from ui.cli.common import Animation
 
             out = os.path.abspath(f"psurf-record-{time.strftime('%Y%m%d-%H%M%S')}.gif")
-            self.recorder = _Animation(out, ".gif", fps=5.0)
+            self.recorder = Animation(out, ".gif", fps=5.0)
             s.message = f"recording {out} (v stops)"
             self.redraw()
             self._record_frame()
