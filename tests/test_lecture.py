@@ -1,8 +1,8 @@
 """Lecture mode: every pinned state against its committed screenshot, keys, command line.
 
-Every state of ``ui.views.lecture.STATES`` is rendered off-screen at 800 x 450 and compared with
-``tests/baselines/lecture_NN.png`` (NN = state number, from 01) by SSIM over the RGB channels,
-with the tolerance and the refresh convention of ``tests/test_ui_screenshots.py``::
+Every state of ``ui.views.lecture_states.STATES`` is rendered off-screen at 800 x 450 and
+compared with ``tests/baselines/lecture_NN.png`` (NN = state number, from 01) by SSIM over the
+RGB channels, with the tolerance and the refresh convention of ``tests/test_ui_screenshots.py``::
 
     PSURF_UPDATE_BASELINES=1 .venv/bin/python -m pytest tests/test_lecture.py
 
