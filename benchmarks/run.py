@@ -95,6 +95,16 @@ def _timed_iter(it, acc: dict, key: str):
         yield item
 
 
+def _fused(tech, group, est, prims, paths, rays, ctx):
+    """``(Hits, values)`` chunks of ``tech``'s compiled walker (MIS weights computed in it
+    are timed with it), or None."""
+    from psurf_core.kernels.fused import MisSet, fused_pass
+
+    mis = MisSet(group, group, est.weighting) if len(group) > 1 else None
+    run = fused_pass(tech, prims, paths, rays, ctx, mis, emit=True)
+    return None if run is None else ((h, v) for h, v, _ in run)
+
+
 def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
     """Pass 0 of ``spec``, stage by stage (the loop of ``photon_pass``, with timers)."""
     est = parse_estimator(spec, scene)
@@ -122,7 +132,7 @@ def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
                 prims = tech.create(paths, ctx)
                 pt["create"] += time.perf_counter() - a
                 pt["prims"] += len(prims)
-                fused = tech.fused_pass(prims, paths, rays, ctx)
+                fused = _fused(tech, group, est, prims, paths, rays, ctx)
                 pairs = candidate_pairs(scene.camera, rays, prims.lo, prims.hi,
                                         settings.max_pairs, prims.hull,
                                         (scene.medium.bounds_min, scene.medium.bounds_max))

@@ -4,6 +4,13 @@
 #: sits on (an emitter, the box boundary) does not block it.
 SHADOW_EPS = 1e-6
 
+#: Tolerance of "inside the medium box" (scene units): vertices on the box boundary, and
+#: rounding just beyond it, count as inside.
+BOX_EPS = 1e-9
+
+#: Padding of the blockers' bounding boxes (scene units) in the shadow tests' box reject.
+BOUNDS_PAD = 1e-9
+
 #: A ray-direction component below this is treated as parallel to a slab.
 PARALLEL_EPS = 1e-12
 

@@ -41,6 +41,15 @@ class Estimator:
     weighting: str | None = None
     reference: bool = False
     notes: tuple = field(default=())  # warnings for the user (dropped members, ...)
+    #: Per group, the set it was made from (``SPEC~A``: ``SPEC``'s group, ``A`` included);
+    #: empty: the groups themselves. The compiled MIS weights are built for these sets, so
+    #: leaving members out compiles nothing new.
+    full_groups: tuple = field(default=())
+
+    @property
+    def sets(self) -> tuple[tuple[tuple, tuple], ...]:
+        """``(group, full_group)`` pairs (see :attr:`full_groups`)."""
+        return tuple(zip(self.groups, self.full_groups or self.groups, strict=True))
 
     @property
     def techniques(self) -> tuple[Technique, ...]:
@@ -139,11 +148,12 @@ def _without(spec: str, scene: Scene | None) -> Estimator:
     if unknown:
         raise UnknownTechnique(f"'{spec}': '{unknown[0]}' is not a member of '{base_spec}' "
                                f"(members: {', '.join(names)})")
-    groups = tuple(g2 for g2 in (tuple(t for t in g if t.name not in drop)
-                                 for g in base.groups) if g2)
-    if not groups:
+    kept = [(tuple(t for t in g if t.name not in drop), full) for g, full in base.sets]
+    kept = [(g, full) for g, full in kept if g]
+    if not kept:
         raise UnknownTechnique(f"'{spec}' leaves out every member of '{base_spec}'")
-    return replace(base, spec=spec, groups=groups)
+    return replace(base, spec=spec, groups=tuple(g for g, _ in kept),
+                   full_groups=tuple(full for _, full in kept))
 
 
 # ------------------------------------------------------------------------- MIS sets and presets

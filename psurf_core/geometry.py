@@ -11,11 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .constants import PARALLEL_EPS, SHADOW_EPS
+from .constants import BOUNDS_PAD, BOX_EPS, PARALLEL_EPS, SHADOW_EPS
+from .kernels.jit import twin
 from .scene import AreaLight, BoxOccluder, MeshLight, MeshOccluder, Scene, SphereOccluder
 
 #: Padding (scene units) of the blocker boxes of the segment reject in ``Blockers.occluded``.
-_BOUNDS_PAD = 1e-9
+_BOUNDS_PAD = BOUNDS_PAD  # (name kept for the tracer)
 
 #: Elements (rays x triangles) processed per chunk by the numpy triangle test.
 _TRI_CHUNK = 1 << 21
@@ -44,9 +45,16 @@ def ray_box(o: np.ndarray, d: np.ndarray, bmin: np.ndarray, bmax: np.ndarray):
     return lo.max(axis=-1), hi.min(axis=-1)
 
 
-def inside_box(x: np.ndarray, bmin: np.ndarray, bmax: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+def inside_box(x: np.ndarray, bmin: np.ndarray, bmax: np.ndarray,
+               eps: float = BOX_EPS) -> np.ndarray:
     """(N,) bool: points ``x`` (N, 3) inside the closed box (with tolerance ``eps``)."""
     return np.all((x >= bmin - eps) & (x <= bmax + eps), axis=-1)
+
+
+@twin(inside_box)
+def _inside_box(x, bmin, bmax, eps=BOX_EPS):
+    return (bmin[0] - eps <= x[0] <= bmax[0] + eps and bmin[1] - eps <= x[1] <= bmax[1] + eps
+            and bmin[2] - eps <= x[2] <= bmax[2] + eps)
 
 
 def ray_sphere(o, d, center, radius):
@@ -98,7 +106,7 @@ def ray_triangles_first(o, d, tris, t_min, t_max):
     if n == 0 or f == 0:
         return best
     # Coarse pass: only rays whose interval meets the mesh's bounding box are tested.
-    lo, hi = tris.reshape(-1, 3).min(0) - 1e-9, tris.reshape(-1, 3).max(0) + 1e-9
+    lo, hi = tris.reshape(-1, 3).min(0) - BOUNDS_PAD, tris.reshape(-1, 3).max(0) + BOUNDS_PAD
     te, tx = ray_box(o, d, lo, hi)
     cand = np.flatnonzero((te < tx) & (tx > t_min) & (te < t_max))
     v0 = tris[:, 0]

@@ -38,7 +38,7 @@ from .render import (
     render_pass,
 )
 from .scene import Scene
-from .techniques.base import Hits, PassContext, Primitives, Technique
+from .techniques.base import Hits, PassContext, Primitives, Technique, fields_of, take
 
 __all__ = [
     "HitTable",
@@ -213,6 +213,11 @@ def _concat_hits(chunks: list) -> Hits:
     """One :class:`Hits` from the chunks recorded for a (technique, batch)."""
     if len(chunks) == 1:
         return chunks[0]
+    if not isinstance(chunks[0].data, dict):  # declared hit records
+        return Hits(np.concatenate([h.ray for h in chunks]),
+                    np.concatenate([h.prim for h in chunks]),
+                    np.concatenate([h.s for h in chunks]),
+                    np.concatenate([h.data for h in chunks]).view(np.recarray))
     keys = set(chunks[0].data)
     for h in chunks[1:]:
         keys &= set(h.data)
@@ -234,10 +239,10 @@ def _scaled_normals(tech: Technique, hits: Hits, prims: Primitives, paths, rays,
     nan = np.full((h, 3), np.nan)
     if h == 0:
         return nan
-    d, p, hd = prims.data, hits.prim, hits.data
+    d, p, hd = fields_of(prims.data), hits.prim, fields_of(hits.data)
     try:
-        if hasattr(tech, "scaled_normal") and hasattr(tech, "reconstruct") \
-                and getattr(tech, "family", "") == "single":
+        if hasattr(tech, "scaled_normal") and (tech.compiled is not None
+                                               or getattr(tech, "family", "") == "single"):
             return np.asarray(tech.scaled_normal(tech.reconstruct(hits, prims, paths, rays, ctx)),
                               dtype=float)
         fam = tech.family
@@ -330,7 +335,7 @@ def inspect_pixel(scene: Scene, estimator, seed: int, pass_index: int, pixel_xy,
         else:
             raw, w = val_w, np.ones(len(hits))
         normal = _scaled_normals(tech, hits, prims, paths, rays, ctx)
-        if "n_dot_psi" in hits.data:
+        if "n_dot_psi" in fields_of(hits.data):
             ndp = np.asarray(hits.data["n_dot_psi"], dtype=float)
         else:  # techniques that keep no |n . psi| in their hits (single scattering)
             ndp = np.abs(_dot(normal, rays.d[hits.ray]))
@@ -564,7 +569,7 @@ def primitive_pixels(scene: Scene, estimator, seed: int, pass_index: int, techni
                          f"in batch {batch})")
     sel = np.array([prim_id])
     one = Primitives(prims.technique, prims.photon[sel], prims.K[sel], prims.lo[sel],
-                     prims.hi[sel], {k: v[sel] for k, v in prims.data.items()})
+                     prims.hi[sel], take(prims.data, sel))
     mask = np.zeros(cam.n_pixels, dtype=bool)
     for ray, prim in candidate_pairs(cam, rays, one.lo, one.hi, settings.max_pairs):
         hits = tech.intersect(one, rays, ray, prim, ctx)

@@ -7,10 +7,10 @@ produce a path of that scatter count from that kind of light evaluates its effec
 (balance ``b = 1``, power ``b = 2``). Weights sum to one on every path, so the combination is
 unbiased whatever the ``Q``'s are (spec section 2).
 
-:func:`mis_weights` runs the compiled kernel of :mod:`psurf_core.mis_fused` (the same
-reconstruct, densities and heuristic per hit, no (J, H) temporaries) wherever it covers the
-set's techniques; ``reconstruct`` / ``density`` / :func:`member_densities` here are the
-reference it is tested against and the path for everything else.
+:func:`mis_weights` is the numpy reference: the compiled walkers weight their hits in the
+same loop that finds them, with the same reconstruct, densities and heuristic composed from
+every member's compiled twins (:mod:`psurf_core.kernels.mis`), wherever every member of the
+set has them; this path is what they are tested against and what runs for the others.
 
 The spec grammar ``mis:A+B``, ``mis-power:A+B`` and the paper's presets are in
 :mod:`psurf_core.estimators`.
@@ -48,21 +48,10 @@ def weights_from_densities(q: np.ndarray, weighting: str | None) -> np.ndarray:
     return w
 
 
-def mis_weights(tech: Technique, group, weighting, hits, prims, paths, rays, ctx,
-                fast: bool = True) -> np.ndarray:
-    """(H,) MIS weight of ``tech``'s hits within ``group``.
-
-    ``fast`` (default): the compiled kernel of :mod:`psurf_core.mis_fused` where it covers
-    ``tech``, every member and the hits' data (the paper's presets), else (and with
-    ``fast=False``) the reference numpy path: ``tech.reconstruct``, each member's
-    ``density`` (:func:`member_densities`), :func:`weights_from_densities`.
-    """
-    if fast and len(hits):
-        from .mis_fused import fast_weights  # numba: imported on the first MIS chunk
-
-        w = fast_weights(tech, group, weighting, hits, prims, paths, rays, ctx)
-        if w is not None:
-            return w
+def mis_weights(tech: Technique, group, weighting, hits, prims, paths, rays,
+                ctx) -> np.ndarray:
+    """(H,) MIS weight of ``tech``'s hits within ``group``: ``tech.reconstruct``, each
+    member's ``density`` (:func:`member_densities`), :func:`weights_from_densities`."""
     rec = tech.reconstruct(hits, prims, paths, rays, ctx)
     q = member_densities(rec, group, ctx)
     me = [i for i, m in enumerate(group) if m is tech][0]

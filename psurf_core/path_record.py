@@ -32,7 +32,15 @@ import numpy as np
 
 from .kernels.jit import ctrl_c_kept, inline, kernel
 from .kernels.vec import vec
-from .pdfs import KIND_CODE, Pdfs, PdfsRow, direction_pdf, flight_pdf, position_pdfs
+from .pdfs import (
+    KIND_CODE,
+    Pdfs,
+    PdfsRow,
+    direction_pdf,
+    flight_pdf,
+    position_pdfs,
+    triangle_pmf,
+)
 from .records import Vec, flat, load, table
 from .records import replace as set_field
 from .scene import AreaLight, MeshLight, PointLight, Scene
@@ -340,3 +348,18 @@ def with_light_point(row, x1, u, v):
     puv, pu, pv = position_pdfs(row.kind, row.pk, u, v)
     pdf = set_field(set_field(set_field(row.pdf, "uv", puv), "u", pu), "v", pv)
     return set_field(set_field(set_field(row, "x1", x1), "uv", (u, v)), "pdf", pdf)
+
+
+def row_of(rec: PathRecord, i: int) -> PathRow:
+    """Record ``i`` of ``rec`` (numpy) as its compiled twin's :class:`PathRow`, pdfs included
+    (what the twin tests and the inspector compare against)."""
+
+    def v(a):
+        return tuple(float(x) for x in a[i])
+
+    pdf = rec.pdf
+    return PathRow(int(rec.K[i]), int(rec.kind[i]), float(rec.st), float(rec.scene.medium.g),
+                   float(triangle_pmf(rec.select([i]), rec.scene)[0]), v(rec.uv), v(rec.axis),
+                   v(rec.eu), v(rec.ev), v(rec.x1), v(rec.x0), v(rec.w3), v(rec.w2), v(rec.w1),
+                   float(rec.t3[i]), float(rec.t2[i]), float(rec.t1[i]), v(rec.psi),
+                   PdfsRow(*(float(getattr(pdf, f)[i]) for f in PdfsRow._fields)))

@@ -59,7 +59,7 @@ def flat(t: np.ndarray) -> np.ndarray:
     """(N, F) float64 view of a record table (what compiled code indexes); F is the number of
     float columns of the record."""
     a = np.ascontiguousarray(t).view(np.ndarray)
-    return a.view(np.float64).reshape(a.shape[0], -1)
+    return a.view(np.float64).reshape(a.shape[0], a.dtype.itemsize // 8)
 
 
 def load(rows, p, cls):

@@ -19,6 +19,7 @@ from .camera import Rays, camera_rays
 from .constants import DEFAULT_MEMORY_BUDGET_MIB
 from .estimators import Estimator
 from .geometry import Blockers, blockers_of
+from .kernels.fused import MisSet, fused_pass
 from .mis import mis_weights
 from .scene import Scene
 from .techniques.base import PassContext, Technique
@@ -121,6 +122,9 @@ def photon_pass(
     group.
     """
     out = np.zeros((len(rays), 3))
+    # Hits are materialized only for those who read them; otherwise the compiled walkers
+    # add their weighted values to ``out`` directly.
+    emit = record is not None or tally is not None
     n_batches = -(-settings.photons // PHOTON_BATCH)
     batch_ss = photon_ss.spawn(n_batches)
     for b in range(n_batches):
@@ -128,31 +132,43 @@ def photon_pass(
         paths = trace(scene, n, np.random.default_rng(batch_ss[b]), blockers=blockers)
         if record is not None:
             record.paths.append(paths)
-        for group in estimator.groups:
+        for group, full_group in estimator.sets:
+            mis = MisSet(group, full_group, estimator.weighting) if len(group) > 1 else None
             for tech in group:
                 ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, pass_index),
                                   pass_index, settings.max_pairs)
                 prims = tech.create(paths, ctx)
                 if record is not None:
                     record.prims[(tech.name, b)] = prims
-                # A technique may find and evaluate its hits in one fused step: the same hits
-                # (with the same data, so MIS weights reconstruct them) and values as the stages.
-                chunks = tech.fused_pass(prims, paths, rays, ctx)
-                if chunks is None:
-                    chunks = stage_chunks(tech, prims, paths, rays, ctx)
-                for hits, raw in chunks:
+                for hits, raw, w in _chunks(tech, prims, paths, rays, ctx, mis, emit, out):
                     if len(hits) == 0:
                         continue
                     val = raw
-                    if len(group) > 1:
-                        val = val * mis_weights(tech, group, estimator.weighting, hits, prims,
-                                                paths, rays, ctx)[:, None]
+                    if mis is not None:
+                        if w is None:
+                            w = mis_weights(tech, group, estimator.weighting, hits, prims,
+                                            paths, rays, ctx)
+                        val = val * w[:, None]
                     if tally is not None:
                         tally(tech, hits, prims, rays, raw, val)
                     if record is not None:
                         record.hits.setdefault((tech.name, b), []).append((hits, val))
                     _accumulate(out, hits.ray, val)
     return out
+
+
+def _chunks(tech, prims, paths, rays, ctx, mis, emit, out):
+    """``(Hits, unweighted values, MIS weights or None)`` of ``tech``'s primitives: its
+    compiled walker where it has one (:func:`~psurf_core.kernels.fused.fused_pass`, which
+    without ``emit`` adds to ``out`` itself and yields nothing), else the stages."""
+    run = fused_pass(tech, prims, paths, rays, ctx, mis, emit=emit, out=out)
+    if run is not None:
+        return run
+    legacy = getattr(tech, "fused_pass", None)
+    chunks = legacy(prims, paths, rays, ctx) if legacy is not None else None
+    if chunks is None:
+        chunks = stage_chunks(tech, prims, paths, rays, ctx)
+    return ((h, v, None) for h, v in chunks)
 
 
 def stage_chunks(tech: Technique, prims, paths, rays: Rays, ctx: PassContext):

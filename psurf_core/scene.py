@@ -7,6 +7,7 @@ builds them from a TOML file and validates every rule of the scene contract.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -67,6 +68,23 @@ class Phase:
     g: float = 0.0
 
 
+class MediumRow(NamedTuple):
+    """:class:`Medium` in compiled code (its attribute names; :func:`medium_row`)."""
+
+    sigma_t: float
+    sigma_s: float
+    g: float
+    bounds_min: tuple[float, float, float]
+    bounds_max: tuple[float, float, float]
+
+
+def medium_row(medium: Medium) -> MediumRow:
+    """The compiled code's :class:`MediumRow` of ``medium``."""
+    return MediumRow(float(medium.sigma_t), float(medium.sigma_s), float(medium.g),
+                     tuple(float(x) for x in medium.bounds_min),
+                     tuple(float(x) for x in medium.bounds_max))
+
+
 @dataclass(frozen=True)
 class Medium:
     """Axis-aligned box of homogeneous medium (vacuum outside).
@@ -92,6 +110,11 @@ class Medium:
     @property
     def albedo(self) -> float:
         return self.sigma_s / self.sigma_t
+
+    @property
+    def g(self) -> float:
+        """The phase function's ``g`` (0: isotropic)."""
+        return self.phase.g
 
     @property
     def diagonal(self) -> float:

@@ -44,11 +44,3 @@ def madd(a, k, b):
 def norm(a):
     """``|a|`` (numpy's ``linalg.norm`` of a row: the square root of the sum in order)."""
     return np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
-
-
-@inline
-def unit(a):
-    """``(a / |a|, |a|)``; a zero vector stays zero (``surface_common.unit``)."""
-    n = norm(a)
-    d = n if n > 0.0 else 1.0
-    return (a[0] / d, a[1] / d, a[2] / d), n

@@ -23,6 +23,43 @@ from ..kernels.jit import twin
 from ..scene import Scene
 
 
+@dataclass(frozen=True)
+class Compiled:
+    """What a technique family gives the compiled machinery (:mod:`psurf_core.kernels`):
+    its records and the compiled twins of its numpy functions (each twin has the name of
+    the numpy function it mirrors and sits beside it in the family's module).
+
+    Attributes
+    ----------
+    geometry, hit : type
+        ``NamedTuple`` classes (:mod:`psurf_core.records`) of a row of ``Primitives.data``
+        (with a ``beta`` field: the photon weight the contribution multiplies) and of
+        ``Hits.data``.
+    n_roots : int
+        Candidate roots per ray and primitive.
+    roots, accept, visibility, contribution : callable
+        The family's numpy functions of Intersect and Evaluate, each with a compiled twin
+        (see :mod:`psurf_core.kernels.walk` for what each returns).
+    segments : callable
+        ``segments(G, x0, hit) -> [(a, b), ...]``: the shadow segments of hits (numpy), in
+        the order ``visibility`` tests them (for the exact mesh tests it defers).
+    reconstruct, density : callable or None
+        The full path of a hit and the family's MIS density, with compiled twins; None:
+        its hits cannot be weighted in compiled code.
+    """
+
+    geometry: type
+    hit: type
+    n_roots: int
+    roots: object
+    accept: object
+    visibility: object
+    contribution: object
+    segments: object
+    reconstruct: object = None
+    density: object = None
+
+
 @dataclass
 class PassContext:
     """What every stage of one pass may read.
@@ -101,8 +138,7 @@ class Hits:
         return self.ray.shape[0]
 
     def select(self, mask: np.ndarray) -> Hits:
-        return Hits(self.ray[mask], self.prim[mask], self.s[mask],
-                    {k: v[mask] for k, v in self.data.items()})
+        return Hits(self.ray[mask], self.prim[mask], self.s[mask], take(self.data, mask))
 
 
 class Technique:
@@ -124,6 +160,8 @@ class Technique:
 
     name = "?"
     family = "?"
+    #: The family's compiled declaration; None: the numpy stages only.
+    compiled: Compiled | None = None
     kernel_dim = 0
     min_k = 1
     max_k: int | None = None
@@ -159,43 +197,80 @@ class Technique:
         return ok[paths.light]
 
     # ---------------------------------------------------------------- the stages
+    # A family with a compiled declaration (``compiled``) gets Intersect, Evaluate,
+    # Reconstruct and its MIS density from the numpy twins it declares: the same functions,
+    # in the same order, as its compiled walker (psurf_core.kernels.walk).
     def create(self, paths, ctx: PassContext) -> Primitives:  # pragma: no cover - abstract
         raise NotImplementedError
 
     def intersect(self, prims: Primitives, rays, ray: np.ndarray, prim: np.ndarray,
-                  ctx: PassContext) -> Hits:  # pragma: no cover - abstract
-        raise NotImplementedError
+                  ctx: PassContext) -> Hits:
+        """Hits among candidate pairs ``(ray, prim)``: the family's ``roots``, the ray's
+        valid interval, then its ``accept``."""
+        fam = self._declared()
+        roots = fam.roots(prims.data[prim], rays.o[ray], rays.d[ray])
+        n_r = roots.shape[0]
+        ray, prim, s = np.tile(ray, n_r), np.tile(prim, n_r), roots.reshape(-1)
+        with np.errstate(invalid="ignore"):
+            k = np.flatnonzero(on_ray(rays, ray, s))  # NaN: no root
+        ray, prim, s = ray[k], prim[k], s[k]
+        ok, hit = fam.accept(prims.data[prim], rays.o[ray], rays.d[ray], s, self.short)
+        return Hits(ray[ok], prim[ok], s[ok], hit[ok])
 
     def evaluate(self, hits: Hits, prims: Primitives, paths, rays,
-                 ctx: PassContext) -> np.ndarray:  # pragma: no cover - abstract
-        raise NotImplementedError
+                 ctx: PassContext) -> np.ndarray:
+        """Per-photon contributions (H, 3): the photon weight ``G.beta`` times the family's
+        ``contribution`` where its ``visibility`` holds, else 0."""
+        fam = self._declared()
+        G = prims.data[hits.prim]
+        x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
+        valid = fam.visibility(G, x0, hits.data, ctx.scene.medium, ctx.blockers)
+        scal = fam.contribution(G, rays.d[hits.ray], hits.s, rays.s_min[hits.ray], hits.data,
+                                self.short, ctx.scene.medium)
+        with np.errstate(invalid="ignore"):
+            return G.beta * np.where(valid, scal, 0.0)[:, None]
 
-    def fused_pass(self, prims: Primitives, paths, rays, ctx: PassContext):
-        """Optional fused Intersect + Evaluate over all of ``prims``' candidate pairs.
-
-        Returns
-        -------
-        iterator of (Hits, (H, 3) ndarray), or None
-            The hits and per-photon contributions that ``binning.candidate_pairs`` ->
-            :meth:`intersect` -> :meth:`evaluate` would give (chunked by
-            ``ctx.max_pairs``), or ``None`` (the default) when the technique has no fused
-            path or it does not apply: :func:`~psurf_core.render.photon_pass` then runs
-            the stages.
-        """
-        return None
+    def _declared(self) -> Compiled:
+        if self.compiled is None:  # pragma: no cover - abstract
+            raise NotImplementedError(f"{self.name} implements its own stages")
+        return self.compiled
 
     # ---------------------------------------------------------------- MIS (Reconstruct)
     def reconstruct(self, hits: Hits, prims: Primitives, paths, rays, ctx: PassContext):
         """The full path (:class:`~psurf_core.path_record.PathRecord`) each hit implies."""
-        raise NotImplementedError(f"{self.name} has no MIS reconstruction")
+        if self.compiled is None or self.compiled.reconstruct is None:
+            raise NotImplementedError(f"{self.name} has no MIS reconstruction")
+        from ..path_record import photon_record
+
+        p = hits.prim
+        rec = photon_record(paths, prims.photon[p], prims.K[p], ctx.scene, rays, hits.ray,
+                            hits.s)
+        return self.compiled.reconstruct(rec, prims.data[p], hits.data)
 
     def density(self, rec, ctx: PassContext) -> np.ndarray:
         """Effective density ``Q = q |n . psi|`` of this technique on records ``rec`` (H,),
         without the factors shared by every technique (see ``path_record``)."""
-        raise NotImplementedError(f"{self.name} has no MIS density")
+        if self.compiled is None or self.compiled.density is None:
+            raise NotImplementedError(f"{self.name} has no MIS density")
+        return self.compiled.density(rec, self.short)
 
 
 # ------------------------------------------------------------------------- shared helpers
+def fields_of(data) -> dict:
+    """``Primitives.data`` / ``Hits.data`` as a dict of columns (a family's record table, or
+    the dict a family without declared records keeps)."""
+    if isinstance(data, dict):
+        return data
+    return {name: data[name] for name in data.dtype.names}
+
+
+def take(data, idx):
+    """Rows ``idx`` of ``Primitives.data`` / ``Hits.data`` (record table or dict)."""
+    if isinstance(data, dict):
+        return {k: v[idx] for k, v in data.items()}
+    return data[idx]
+
+
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise dot product of (N, 3) arrays."""
     return np.einsum("ij,ij->i", a, b)

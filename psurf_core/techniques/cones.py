@@ -9,48 +9,181 @@ hit, and the scaled normal is ``n = t1 (w2 - c1 w1*)`` (``|n| = t1 s1``).
 
 ``X = beta_1^- [rho(c1) / p(c1) = 1/2pi] E(t1*) ss rho0 E(s*) / |n . psi|``; the short cone
 needs ``t1* < T1`` and drops ``E(t1*)`` (track length).
+
+``Q = q_{<=w2} p(t2) 2pi rho(c1) t1 |(w2 - c1 w1) . psi|`` (short: ``* E(t1)``).
+
+Each function below is the numpy reference (arrays of hits); the function decorated
+``@twin`` beneath it is its compiled twin (one hit, vectors as 3-tuples), which the walker
+(:mod:`psurf_core.kernels.walk`) calls under the same name.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from ..path_record import Pdfs, photon_record
-from .base import Hits, Primitives, Technique, clip_bounds, dot, on_ray, segments_clear
+from ..kernels.jit import twin
+from ..kernels.shadow import CLEAR, status
+from ..kernels.vec import madd, scale, sub
+from ..path_record import with_t1, with_w1
+from ..records import Vec, table
+from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
     beta1,
-    camera_vertex,
-    closest_shift,
+    camera_term,
     cone_bounds,
-    expand,
-    finish,
     gather,
     q_to_w2,
     quadratic_roots,
     radial,
     select_photons,
-    transmittance,
+    transmittance_of,
     unit,
 )
 
 
-def scaled_normal(w2: np.ndarray, w1: np.ndarray, t1: np.ndarray) -> np.ndarray:
+class ConeGeometry(NamedTuple):
+    """One photon cone (a row of its ``Primitives.data``)."""
+
+    x1: Vec  # apex: the photon's vertex x1
+    w2: Vec  # axis: the direction that arrived at x1
+    c1: float  # cos th1 = w1 . w2 of the photon's own w1
+    T1: float  # the photon's sampled flight from x1
+    beta: Vec  # beta_1^- (W)
+
+
+class ConeHit(NamedTuple):
+    """One cone hit (a row of its ``Hits.data``)."""
+
+    t1: float  # integrated distance x1 -> x0
+    w1: Vec  # rebuilt direction (x0 - x1) / t1
+    n_dot_psi: float  # |n . psi|, n = t1 (w2 - c1 w1)
+
+
+# ------------------------------------------------------------------------- geometry
+def scaled_normal(w2, w1, t1):
     """(H, 3) ``dx0/dt1 x dx0/dph1 = t1 (w2 - c1 w1)`` (up to sign), ``c1 = w1 . w2``."""
     return t1[:, None] * (w2 - dot(w1, w2)[:, None] * w1)
 
 
+@twin(scaled_normal)
+def _scaled_normal(w2, w1, t1):
+    return scale(t1, sub(w2, scale(dot(w1, w2), w1)))
+
+
+# ------------------------------------------------------------------------- Intersect
+def roots(G, o, psi):
+    """(2, N) ray distances of the cone equation's roots (NaN: none), solved in ``s - sc``
+    about the ray point closest to the apex (well conditioned)."""
+    sc = dot(G.x1 - o, psi)
+    b = o + sc[:, None] * psi - G.x1
+    bw, pw, cc = dot(b, G.w2), dot(psi, G.w2), G.c1 * G.c1
+    return quadratic_roots(pw * pw - cc, bw * pw - cc * dot(b, psi),
+                           bw * bw - cc * dot(b, b)) + sc
+
+
+@twin(roots)
+def _roots(G, o, psi):
+    sc = dot(sub(G.x1, o), psi)
+    b = sub(madd(o, sc, psi), G.x1)
+    bw, pw, cc = dot(b, G.w2), dot(psi, G.w2), G.c1 * G.c1
+    r0, r1 = quadratic_roots(pw * pw - cc, bw * pw - cc * dot(b, psi),
+                             bw * bw - cc * dot(b, b))
+    return r0 + sc, r1 + sc
+
+
+def accept(G, o, psi, s, short):
+    """Which roots are hits (the photon's nappe; ``t1 < T1`` if short; not grazing), and
+    their records (:class:`ConeHit`)."""
+    w1, t1 = unit(o + s[:, None] * psi - G.x1)
+    # The squared equation also holds on the mirror nappe: keep the photon's side.
+    ok = (t1 > 0) & (dot(w1, G.w2) * G.c1 > 0)
+    if short:
+        ok &= t1 < G.T1
+    ndp = np.abs(dot(scaled_normal(G.w2, w1, t1), psi))
+    return ok & (ndp > NDP_MIN), table(ConeHit, t1=t1, w1=w1, n_dot_psi=ndp)
+
+
+@twin(accept)
+def _accept(G, o, psi, s, short):
+    w1, t1 = unit(sub(madd(o, s, psi), G.x1))
+    ok = t1 > 0.0 and dot(w1, G.w2) * G.c1 > 0.0 and (not short or t1 < G.T1)
+    ndp = abs(dot(scaled_normal(G.w2, w1, t1), psi))
+    return ok and ndp > NDP_MIN, ConeHit(t1, w1, ndp)
+
+
+# ------------------------------------------------------------------------- Evaluate
+def segments(G, x0, hit):
+    """The reconstructed path's one segment to test: ``x1 -> x0``."""
+    return [(G.x1, x0)]
+
+
+def visibility(G, x0, hit, medium, blockers):
+    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box)."""
+    return segments_clear(blockers, (G.x1, x0))
+
+
+@twin(visibility)
+def _visibility(G, x0, hit, medium, blockers):
+    return status(G.x1, x0, blockers), CLEAR, CLEAR
+
+
+def contribution(G, psi, s, s_min, hit, short, medium):
+    """``[rho(c1)/p(c1) = 1/2pi] [E(t1*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit
+    photon weight."""
+    extra = 0.0 if short else hit.t1
+    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
+        hit.n_dot_psi
+
+
+@twin(contribution)
+def _contribution(G, psi, s, s_min, hit, short, medium):
+    extra = 0.0 if short else hit.t1
+    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
+        hit.n_dot_psi
+
+
+# ------------------------------------------------------------------------- MIS
+def reconstruct(rec, G, hit):
+    """The hit's full path: the photon's record with ``t1*`` and ``w1*``."""
+    return rec.with_(t1=hit.t1, w1=hit.w1)
+
+
+@twin(reconstruct)
+def _reconstruct(rec, G, hit):
+    return with_w1(with_t1(rec, hit.t1), hit.w1)
+
+
+def density(rec, short):
+    """Relative ``Q = q_{<=w2} p(t2) 2pi rho(c1) t1 |(w2 - c1 w1) . psi|`` (short:
+    ``* E(t1)``)."""
+    n = scaled_normal(rec.w2, rec.w1, rec.t1)
+    q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * np.abs(dot(n, rec.psi))
+    return q * transmittance_of(rec, rec.t1) if short else q
+
+
+@twin(density)
+def _density(rec, short):
+    n = scaled_normal(rec.w2, rec.w1, rec.t1)
+    q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * abs(dot(n, rec.psi))
+    return q * transmittance_of(rec, rec.t1) if short else q
+
+
+# ------------------------------------------------------------------------- Create
 class PhotonCone(Technique):
     """The photon cone; ``short`` restricts ``t1* < T1`` (track-length)."""
 
     family = "cones"
     min_k = 2
+    compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
+                        segments, reconstruct, density)
 
     def __init__(self, short: bool):
         self.short = short
         self.name = "cone-short" if short else "cone"
 
-    # ------------------------------------------------------------------ Create
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)
         g = gather(paths, photon, K)
@@ -58,66 +191,9 @@ class PhotonCone(Technique):
         lo, hi = cone_bounds(g["x1"], g["w2"], c1, s1, g["T1"] if self.short else None)
         lo, hi = clip_bounds(ctx.scene, lo, hi)
         return Primitives(self.name, photon, K, lo, hi,
-                          dict(x1=g["x1"], w2=g["w2"], c1=c1, T1=g["T1"]))
+                          table(ConeGeometry, x1=g["x1"], w2=g["w2"], c1=c1, T1=g["T1"],
+                                beta=beta1(paths, photon, K)))
 
-    # ------------------------------------------------------------------ Intersect
-    def intersect(self, prims, rays, ray, prim, ctx) -> Hits:
-        d = prims.data
-        x1, w2, c1 = d["x1"][prim], d["w2"][prim], d["c1"][prim]
-        o, psi = rays.o[ray], rays.d[ray]
-        sc = closest_shift(o, psi, x1)
-        b = o + sc[:, None] * psi - x1
-        bw, pw, cc = dot(b, w2), dot(psi, w2), c1 * c1
-        roots = quadratic_roots(pw * pw - cc, bw * pw - cc * dot(b, psi),
-                                bw * bw - cc * dot(b, b)) + sc
-        ray, prim, s, _ = expand(ray, prim, roots)
-        with np.errstate(invalid="ignore"):
-            ok = np.isfinite(s) & on_ray(rays, ray, s)
-        ray, prim, s = ray[ok], prim[ok], s[ok]
-        w1, t1 = unit(rays.o[ray] + s[:, None] * rays.d[ray] - d["x1"][prim])
-        w2, c1 = d["w2"][prim], d["c1"][prim]
-        # The squared equation also holds on the mirror nappe: keep the photon's side.
-        ok = (t1 > 0) & (dot(w1, w2) * c1 > 0)
-        if self.short:
-            ok &= t1 < d["T1"][prim]
-        ndp = np.abs(dot(scaled_normal(w2, w1, t1), rays.d[ray]))
-        keep = ok & (ndp > NDP_MIN)
-        return Hits(ray[keep], prim[keep], s[keep],
-                    dict(t1=t1[keep], w1=w1[keep], n_dot_psi=ndp[keep]))
-
-    # ------------------------------------------------------------------ Evaluate
-    def evaluate(self, hits, prims, paths, rays, ctx) -> np.ndarray:
-        scene = ctx.scene
-        p = hits.prim
-        d = prims.data
-        x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        valid = segments_clear(ctx.blockers, (d["x1"][p], x0))
-        # beta_1^- (1/2pi) [E(t1*)] ss rho0 E(s) / |n . psi|
-        scal = camera_vertex(scene, rays, hits, hits.data["w1"]) / (2.0 * np.pi)
-        if not self.short:
-            scal = scal * transmittance(ctx, hits.data["t1"])
-        return finish(beta1(paths, prims.photon[p], prims.K[p]), scal, valid,
-                      hits.data["n_dot_psi"])
-
-    # ------------------------------------------------------------------ Fused
-    def fused_pass(self, prims, paths, rays, ctx):
-        """Intersect + Evaluate in one compiled loop (:mod:`.surfaces_fused`)."""
-        from .surfaces_fused import surface_chunks
-
-        return surface_chunks(self, "cone", prims, paths, rays, ctx)
-
-    # ------------------------------------------------------------------ Reconstruct
-    def reconstruct(self, hits, prims, paths, rays, ctx):
-        p = hits.prim
-        rec = photon_record(paths, prims.photon[p], prims.K[p], ctx.scene, rays, hits.ray, hits.s)
-        return rec.with_(t1=hits.data["t1"], w1=hits.data["w1"])
-
-    def density(self, rec, ctx):
-        """Relative ``Q = q_{<=w2} p(t2) 2pi rho(c1) t1 |(w2 - c1 w1) . psi|`` (short:
-        ``* E(t1)``)."""
-        pdf = Pdfs(rec, ctx.scene)
-        n = scaled_normal(rec.w2, rec.w1, rec.t1)
-        q = q_to_w2(rec, pdf) * pdf.t2 * pdf.c1 * np.abs(dot(n, rec.psi))
-        if self.short:
-            q = q * transmittance(ctx, rec.t1)
-        return q
+    def scaled_normal(self, rec):
+        """(H, 3) scaled normal on records ``rec`` (the inspector's)."""
+        return scaled_normal(rec.w2, rec.w1, rec.t1)

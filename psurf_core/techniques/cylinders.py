@@ -10,59 +10,199 @@ its last flight ``T1``; it integrates the distance ``t2`` into ``x1`` and the az
 ``X = beta_2 E(t2*) ss [rho(c1)/p(c1) = 1/2pi] [E(T1)/p(T1) = 1/st] ss rho0 E(s*) / |n.psi|
 = beta_1^- (1/2pi) E(t2*) ss rho0 E(s*) / |n . psi|``. Short: ``t2* < T2``, drop ``E(t2*)``.
 Because ``x1`` is rebuilt, photons whose own ``x1`` left the box still count (spec 4).
+
+``Q = q_{<=w2} 2pi rho(c1) p(t1) t1 s1 |e_r . psi|`` (short: ``* E(t2)``).
+
+Each numpy function has its compiled twin (``@twin``) beneath it; see :mod:`.cones`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from ..path_record import Pdfs, photon_record
-from .base import (
-    Hits,
-    Primitives,
-    Technique,
-    clear_from,
-    clip_bounds,
-    dot,
-    on_own_segment,
-    on_ray,
-    segments_clear,
-)
+from ..kernels.jit import twin
+from ..kernels.shadow import BLOCKED, CLEAR, status
+from ..kernels.vec import add, madd, scale, sub
+from ..path_record import with_t2, with_w1
+from ..records import Vec, table
+from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
     beta1,
-    camera_vertex,
+    camera_term,
     circle_extent,
-    closest_shift,
-    expand,
-    finish,
     gather,
+    own_segment,
     q_to_w2,
     quadratic_roots,
     radial,
+    rebuilt_clear,
     select_photons,
     sweep_bounds,
-    transmittance,
+    transmittance_of,
     unit,
 )
 
 
-def scaled_normal(w2: np.ndarray, w1: np.ndarray, t1: np.ndarray) -> np.ndarray:
+class CylinderGeometry(NamedTuple):
+    """One photon cylinder (a row of its ``Primitives.data``)."""
+
+    x2: Vec  # a point of the axis: the photon's vertex x2
+    w2: Vec  # axis direction
+    c1: float  # cos th1 of the photon's w1 about w2
+    s1: float  # sin th1
+    T1: float  # the photon's flight from x1 (radius T1 s1)
+    T2: float  # the photon's flight from x2
+    own: float  # 1: segment x2 -> x1 is the photon's own, clear for t2 < T2 (own_segment)
+    beta: Vec  # beta_1^- (W)
+
+
+class CylinderHit(NamedTuple):
+    """One cylinder hit (a row of its ``Hits.data``)."""
+
+    t2: float  # integrated distance x2 -> x1*
+    w1: Vec  # rebuilt direction c1 w2 + s1 e_r*
+    n_dot_psi: float  # |n . psi| = T1 s1 |e_r* . psi|
+
+
+# ------------------------------------------------------------------------- geometry
+def scaled_normal(w2, w1, t1):
     """(H, 3) ``dx0/dt2 x dx0/dph1 = t1 (c1 w2 - w1)`` (up to sign), ``c1 = w1 . w2``."""
     return t1[:, None] * (dot(w1, w2)[:, None] * w2 - w1)
 
 
+@twin(scaled_normal)
+def _scaled_normal(w2, w1, t1):
+    return scale(t1, sub(scale(dot(w1, w2), w2), w1))
+
+
+# ------------------------------------------------------------------------- Intersect
+def roots(G, o, psi):
+    """(2, N) ray distances where the ray meets the infinite cylinder (NaN: none): the
+    quadratic in the components perpendicular to the axis, in ``s - sc``."""
+    sc = dot(G.x2 - o, psi)
+    b = o + sc[:, None] * psi - G.x2
+    bp = b - dot(b, G.w2)[:, None] * G.w2
+    pp = psi - dot(psi, G.w2)[:, None] * G.w2
+    r = G.T1 * G.s1
+    return quadratic_roots(dot(pp, pp), dot(bp, pp), dot(bp, bp) - r * r) + sc
+
+
+@twin(roots)
+def _roots(G, o, psi):
+    sc = dot(sub(G.x2, o), psi)
+    b = sub(madd(o, sc, psi), G.x2)
+    bp = sub(b, scale(dot(b, G.w2), G.w2))
+    pp = sub(psi, scale(dot(psi, G.w2), G.w2))
+    r = G.T1 * G.s1
+    r0, r1 = quadratic_roots(dot(pp, pp), dot(bp, pp), dot(bp, bp) - r * r)
+    return r0 + sc, r1 + sc
+
+
+def accept(G, o, psi, s, short):
+    """Hits: past ``x1`` on the axis (``t2* > 0``; ``< T2`` if short), not grazing."""
+    v = o + s[:, None] * psi - G.x2
+    h = dot(v, G.w2)
+    e_r, _ = unit(v - h[:, None] * G.w2)
+    t2 = h - G.T1 * G.c1
+    ok = t2 > 0
+    if short:
+        ok &= t2 < G.T2
+    w1 = G.c1[:, None] * G.w2 + G.s1[:, None] * e_r
+    ndp = G.T1 * G.s1 * np.abs(dot(e_r, psi))
+    return ok & (ndp > NDP_MIN), table(CylinderHit, t2=t2, w1=w1, n_dot_psi=ndp)
+
+
+@twin(accept)
+def _accept(G, o, psi, s, short):
+    v = sub(madd(o, s, psi), G.x2)
+    h = dot(v, G.w2)
+    e_r, _ = unit(sub(v, scale(h, G.w2)))
+    t2 = h - G.T1 * G.c1
+    ok = t2 > 0.0 and (not short or t2 < G.T2)
+    w1 = add(scale(G.c1, G.w2), scale(G.s1, e_r))
+    ndp = G.T1 * G.s1 * abs(dot(e_r, psi))
+    return ok and ndp > NDP_MIN, CylinderHit(t2, w1, ndp)
+
+
+# ------------------------------------------------------------------------- Evaluate
+def segments(G, x0, hit):
+    """The reconstructed path's segments: ``x2 -> x1*``, ``x1* -> x0``."""
+    x1 = G.x2 + hit.t2[:, None] * G.w2
+    return [(G.x2, x1), (x1, x0)]
+
+
+def visibility(G, x0, hit, medium, blockers):
+    """(H,) bool: ``x2 -> x1*`` counts (on the photon's own segment, or ``x1*`` in the box
+    and unoccluded) and ``x1* -> x0`` is unoccluded."""
+    x1 = G.x2 + hit.t2[:, None] * G.w2
+    known = (G.own != 0.0) & (hit.t2 < G.T2)
+    return segments_clear(blockers, (x1, x0),
+                          ok=rebuilt_clear(G.x2, x1, known, medium, blockers))
+
+
+@twin(visibility)
+def _visibility(G, x0, hit, medium, blockers):
+    x1 = madd(G.x2, hit.t2, G.w2)
+    st0 = rebuilt_clear(G.x2, x1, G.own != 0.0 and hit.t2 < G.T2, medium, blockers)
+    st1 = CLEAR if st0 == BLOCKED else status(x1, x0, blockers)
+    return st0, st1, CLEAR
+
+
+def contribution(G, psi, s, s_min, hit, short, medium):
+    """``(1/2pi) [E(t2*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight."""
+    extra = 0.0 if short else hit.t2
+    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
+        hit.n_dot_psi
+
+
+@twin(contribution)
+def _contribution(G, psi, s, s_min, hit, short, medium):
+    extra = 0.0 if short else hit.t2
+    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
+        hit.n_dot_psi
+
+
+# ------------------------------------------------------------------------- MIS
+def reconstruct(rec, G, hit):
+    """The hit's full path: ``t2*``, ``x1* = x2 + t2* w2`` and ``w1*``."""
+    return rec.with_(t2=hit.t2, x1=rec.x2 + hit.t2[:, None] * rec.w2, w1=hit.w1)
+
+
+@twin(reconstruct)
+def _reconstruct(rec, G, hit):
+    return with_w1(with_t2(rec, hit.t2), hit.w1)  # (no compiled density reads x1)
+
+
+def density(rec, short):
+    """Relative ``Q = q_{<=w2} 2pi rho(c1) p(t1) t1 s1 |e_r . psi|`` (short: ``* E(t2)``)."""
+    n = scaled_normal(rec.w2, rec.w1, rec.t1)
+    q = q_to_w2(rec) * rec.pdf.c1 * rec.pdf.t1 * np.abs(dot(n, rec.psi))
+    return q * transmittance_of(rec, rec.t2) if short else q
+
+
+@twin(density)
+def _density(rec, short):
+    n = scaled_normal(rec.w2, rec.w1, rec.t1)
+    q = q_to_w2(rec) * rec.pdf.c1 * rec.pdf.t1 * abs(dot(n, rec.psi))
+    return q * transmittance_of(rec, rec.t2) if short else q
+
+
+# ------------------------------------------------------------------------- Create
 class PhotonCylinder(Technique):
     """The photon cylinder; ``short`` restricts ``t2* < T2`` (track-length)."""
 
     family = "cylinders"
     min_k = 2
+    compiled = Compiled(CylinderGeometry, CylinderHit, 2, roots, accept, visibility,
+                        contribution, segments, reconstruct, density)
 
     def __init__(self, short: bool):
         self.short = short
         self.name = "cylinder-short" if short else "cylinder"
 
-    # ------------------------------------------------------------------ Create
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=2)
         g = gather(paths, photon, K)
@@ -73,76 +213,10 @@ class PhotonCylinder(Technique):
         ext = circle_extent(w2, T1 * s1)
         lo, hi = sweep_bounds(centre - ext, centre + ext, w2, g["T2"] if self.short else None)
         lo, hi = clip_bounds(ctx.scene, lo, hi)
-        return Primitives(self.name, photon, K, lo, hi,
-                          dict(x2=x2, w2=w2, c1=c1, s1=s1, T1=T1, T2=g["T2"]))
+        return Primitives(self.name, photon, K, lo, hi, table(
+            CylinderGeometry, x2=x2, w2=w2, c1=c1, s1=s1, T1=T1, T2=g["T2"],
+            own=own_segment(paths, photon, K - 1, x2, ctx.scene), beta=beta1(paths, photon, K)))
 
-    # ------------------------------------------------------------------ Intersect
-    def intersect(self, prims, rays, ray, prim, ctx) -> Hits:
-        d = prims.data
-        x2, w2 = d["x2"][prim], d["w2"][prim]
-        r = d["T1"][prim] * d["s1"][prim]
-        o, psi = rays.o[ray], rays.d[ray]
-        sc = closest_shift(o, psi, x2)
-        b = o + sc[:, None] * psi - x2
-        bp = b - dot(b, w2)[:, None] * w2
-        pp = psi - dot(psi, w2)[:, None] * w2
-        roots = quadratic_roots(dot(pp, pp), dot(bp, pp), dot(bp, bp) - r * r) + sc
-        ray, prim, s, _ = expand(ray, prim, roots)
-        with np.errstate(invalid="ignore"):
-            ok = np.isfinite(s) & on_ray(rays, ray, s)
-        ray, prim, s = ray[ok], prim[ok], s[ok]
-        w2, c1, s1, T1 = d["w2"][prim], d["c1"][prim], d["s1"][prim], d["T1"][prim]
-        v = rays.o[ray] + s[:, None] * rays.d[ray] - d["x2"][prim]
-        h = dot(v, w2)
-        e_r, _ = unit(v - h[:, None] * w2)
-        t2 = h - T1 * c1
-        ok = t2 > 0
-        if self.short:
-            ok &= t2 < d["T2"][prim]
-        w1 = c1[:, None] * w2 + s1[:, None] * e_r
-        ndp = T1 * s1 * np.abs(dot(e_r, rays.d[ray]))
-        keep = ok & (ndp > NDP_MIN)
-        return Hits(ray[keep], prim[keep], s[keep],
-                    dict(t2=t2[keep], w1=w1[keep], n_dot_psi=ndp[keep]))
-
-    # ------------------------------------------------------------------ Evaluate
-    def evaluate(self, hits, prims, paths, rays, ctx) -> np.ndarray:
-        scene = ctx.scene
-        p = hits.prim
-        d = prims.data
-        x2 = d["x2"][p]
-        x1 = x2 + hits.data["t2"][:, None] * d["w2"][p]
-        x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        own = on_own_segment(scene, paths, prims.photon[p], prims.K[p] - 1, hits.data["t2"],
-                             d["T2"][p], x2)
-        valid = segments_clear(ctx.blockers, (x1, x0),
-                               ok=clear_from(scene, ctx.blockers, x2, x1, own))
-        # beta_1^- (1/2pi) [E(t2*)] ss rho0 E(s) / |n . psi|
-        scal = camera_vertex(scene, rays, hits, hits.data["w1"]) / (2.0 * np.pi)
-        if not self.short:
-            scal = scal * transmittance(ctx, hits.data["t2"])
-        return finish(beta1(paths, prims.photon[p], prims.K[p]), scal, valid,
-                      hits.data["n_dot_psi"])
-
-    # ------------------------------------------------------------------ Fused
-    def fused_pass(self, prims, paths, rays, ctx):
-        """Intersect + Evaluate in one compiled loop (:mod:`.surfaces_fused`)."""
-        from .surfaces_fused import surface_chunks
-
-        return surface_chunks(self, "cylinder", prims, paths, rays, ctx)
-
-    # ------------------------------------------------------------------ Reconstruct
-    def reconstruct(self, hits, prims, paths, rays, ctx):
-        p = hits.prim
-        rec = photon_record(paths, prims.photon[p], prims.K[p], ctx.scene, rays, hits.ray, hits.s)
-        t2 = hits.data["t2"]
-        return rec.with_(t2=t2, x1=rec.x2 + t2[:, None] * rec.w2, w1=hits.data["w1"])
-
-    def density(self, rec, ctx):
-        """Relative ``Q = q_{<=w2} 2pi rho(c1) p(t1) t1 s1 |e_r . psi|`` (short: ``* E(t2)``)."""
-        pdf = Pdfs(rec, ctx.scene)
-        n = scaled_normal(rec.w2, rec.w1, rec.t1)
-        q = q_to_w2(rec, pdf) * pdf.c1 * pdf.t1 * np.abs(dot(n, rec.psi))
-        if self.short:
-            q = q * transmittance(ctx, rec.t2)
-        return q
+    def scaled_normal(self, rec):
+        """(H, 3) scaled normal on records ``rec`` (the inspector's)."""
+        return scaled_normal(rec.w2, rec.w1, rec.t1)

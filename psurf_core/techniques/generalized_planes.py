@@ -14,23 +14,35 @@ Per photon ``X = beta_1^- st E(integrated) ss rho0 E(s) / |n . psi|``: the spec'
 ``beta_3 (ss/st) ss`` (``[t1,t3]``) and ``beta_3 ss^2/st`` (``[t2,t3]``) both equal
 ``st beta_3 (ss/st)^2 = st beta_1^-`` (see ``surface_common``). Long keeps
 ``E(t_a* + t3*)``; short requires ``t* < T`` for both and drops it.
+
+``Q`` (``q_{<=w3}`` dropped): ``p(t2) p(w2) p(w1) |(w1 x w3).psi|`` (t1t3) or
+``p(w2) p(w1) p(t1) |(w2 x w3).psi|`` (t2t3); short: ``* E(t_a + t3)``.
+
+In the plane's own coordinates the hit is ``origin + t3 w3 + tv v`` (``v`` = ``w1`` or
+``w2``); ``fixed`` in the geometry says which (1: ``[t1, t3]``, the step ``x2* -> x1*`` is the
+photon's ``T2``). Each numpy function has its compiled twin (``@twin``) beneath it; see
+:mod:`.cones`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from ..path_record import Pdfs, photon_record
+from ..geometry import inside_box
+from ..kernels.jit import twin
+from ..kernels.shadow import BLOCKED, CLEAR, status
+from ..kernels.vec import madd
+from ..path_record import with_t1, with_t2, with_t3
+from ..records import Vec, table
 from .base import (
-    Hits,
+    Compiled,
     Primitives,
     Technique,
-    clear_from,
     clip_bounds,
+    cross,
     dot,
-    in_medium,
-    on_own_segment,
-    on_ray,
     ray_bounds,
     segments_clear,
     wedge_hull,
@@ -38,20 +50,190 @@ from .base import (
 from .surface_common import (
     NDP_MIN,
     beta1,
-    camera_vertex,
-    finish,
+    camera_term,
     gather,
+    own_segment,
     plane_solve,
+    rebuilt_clear,
     select_photons,
-    transmittance,
+    transmittance_of,
 )
 
 
-def scaled_normal(which: str, w3: np.ndarray, w2: np.ndarray, w1: np.ndarray) -> np.ndarray:
+class GPlaneGeometry(NamedTuple):
+    """One generalized photon plane (a row of its ``Primitives.data``)."""
+
+    origin: Vec  # x3 + T2 w2 (t1t3) or x3 + T1 w1 (t2t3)
+    w3: Vec  # first spanning direction (integrated t3)
+    v: Vec  # second: w1 (t1t3) or w2 (t2t3)
+    Tu: float  # T3: the photon's flight along w3 (short limit of t3)
+    Tv: float  # T1 or T2: the short limit along v
+    x3: Vec  # the photon's vertex x3 (kept)
+    w2: Vec
+    w1: Vec
+    T2: float
+    fixed: float  # 1: [t1, t3] (x1* = x2* + T2 w2); 0: [t2, t3] (x1* = x2* + tv w2)
+    own: float  # 1: segment x3 -> x2 is the photon's own, clear for t3 < T3
+    beta: Vec  # beta_1^- (W)
+
+
+class GPlaneHit(NamedTuple):
+    """One generalized-plane hit (a row of its ``Hits.data``)."""
+
+    t3: float  # integrated distance x3 -> x2*
+    tv: float  # integrated t1 (t1t3) or t2 (t2t3)
+    n_dot_psi: float  # |(v x w3) . psi|
+
+
+# ------------------------------------------------------------------------- geometry
+def scaled_normal(which, w3, w2, w1):
     """(H, 3) ``dx0/dxi1 x dx0/dxi2`` up to sign: ``w1 x w3`` (t1t3) or ``w2 x w3`` (t2t3)."""
-    return np.cross(w1 if which == "t1t3" else w2, w3)
+    return cross(w1 if which == "t1t3" else w2, w3)
 
 
+# ------------------------------------------------------------------------- Intersect
+def roots(G, o, psi):
+    """(1, N) ray distance of the plane hit (inf / NaN where the ray is parallel)."""
+    return plane_solve(G.origin, G.w3, G.v, o, psi)[2][None]
+
+
+@twin(roots)
+def _roots(G, o, psi):
+    return (plane_solve(G.origin, G.w3, G.v, o, psi)[2],)
+
+
+def accept(G, o, psi, s, short):
+    """Hits: inside the quadrant (parallelogram if short), not grazing."""
+    t3, tv, _, ndp = plane_solve(G.origin, G.w3, G.v, o, psi)
+    with np.errstate(invalid="ignore"):
+        ok = (ndp > NDP_MIN) & (t3 > 0) & (tv > 0)
+        if short:
+            ok &= (t3 < G.Tu) & (tv < G.Tv)
+    return ok, table(GPlaneHit, t3=t3, tv=tv, n_dot_psi=ndp)
+
+
+@twin(accept)
+def _accept(G, o, psi, s, short):
+    t3, tv, _, ndp = plane_solve(G.origin, G.w3, G.v, o, psi)
+    ok = ndp > NDP_MIN and t3 > 0.0 and tv > 0.0 and (not short or (t3 < G.Tu and tv < G.Tv))
+    return ok, GPlaneHit(t3, tv, ndp)
+
+
+# ------------------------------------------------------------------------- Evaluate
+def vertices(G, hit):
+    """Rebuilt ``x2* = x3 + t3* w3`` and ``x1* = x2* + (T2 | tv*) w2`` (H, 3)."""
+    x2 = G.x3 + hit.t3[:, None] * G.w3
+    step = np.where(G.fixed != 0.0, G.T2, hit.tv)
+    return x2, x2 + step[:, None] * G.w2
+
+
+@twin(vertices)
+def _vertices(G, hit):
+    x2 = madd(G.x3, hit.t3, G.w3)
+    return x2, madd(x2, G.T2 if G.fixed != 0.0 else hit.tv, G.w2)
+
+
+def segments(G, x0, hit):
+    """The reconstructed path's segments: ``x3 -> x2*``, ``x2* -> x1*``, ``x1* -> x0``."""
+    x2, x1 = vertices(G, hit)
+    return [(G.x3, x2), (x2, x1), (x1, x0)]
+
+
+def visibility(G, x0, hit, medium, blockers):
+    """(H,) bool: ``x3 -> x2*`` counts (own segment, or ``x2*`` in the box and clear),
+    ``x1*`` is in the box, and ``x2* -> x1* -> x0`` are unoccluded."""
+    x2, x1 = vertices(G, hit)
+    known = (G.own != 0.0) & (hit.t3 < G.Tu)
+    ok = rebuilt_clear(G.x3, x2, known, medium, blockers)
+    ok &= inside_box(x1, medium.bounds_min, medium.bounds_max)
+    return segments_clear(blockers, (x2, x1), (x1, x0), ok=ok)
+
+
+@twin(visibility)
+def _visibility(G, x0, hit, medium, blockers):
+    x2, x1 = vertices(G, hit)
+    st0 = rebuilt_clear(G.x3, x2, G.own != 0.0 and hit.t3 < G.Tu, medium, blockers)
+    if st0 == BLOCKED:
+        return BLOCKED, CLEAR, CLEAR
+    if not inside_box(x1, medium.bounds_min, medium.bounds_max):
+        return st0, BLOCKED, CLEAR
+    st1 = status(x2, x1, blockers)
+    if st1 == BLOCKED:
+        return st0, BLOCKED, CLEAR
+    return st0, st1, status(x1, x0, blockers)
+
+
+def contribution(G, psi, s, s_min, hit, short, medium):
+    """``st [E(t3* + tv*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight."""
+    extra = 0.0 if short else hit.t3 + hit.tv
+    return medium.sigma_t * camera_term(-dot(G.w1, psi), s - s_min, extra, medium) / \
+        hit.n_dot_psi
+
+
+@twin(contribution)
+def _contribution(G, psi, s, s_min, hit, short, medium):
+    extra = 0.0 if short else hit.t3 + hit.tv
+    return medium.sigma_t * camera_term(-dot(G.w1, psi), s - s_min, extra, medium) / \
+        hit.n_dot_psi
+
+
+# ------------------------------------------------------------------------- MIS: [t1, t3]
+def reconstruct_t1t3(rec, G, hit):
+    """The hit's full path: ``t3*``, ``t1*`` and the rebuilt ``x2*, x1*``."""
+    x2, x1 = vertices(G, hit)
+    return rec.with_(t3=hit.t3, t1=hit.tv, x2=x2, x1=x1)
+
+
+@twin(reconstruct_t1t3)
+def _reconstruct_t1t3(rec, G, hit):
+    return with_t1(with_t3(rec, hit.t3), hit.tv)  # (no compiled density reads x2, x1)
+
+
+def density_t1t3(rec, short):
+    """Relative ``Q = p(t2) p(w2) p(w1) |(w1 x w3) . psi|`` (short: ``* E(t1 + t3)``)."""
+    q = rec.pdf.t2 * rec.pdf.w2 * rec.pdf.w1 * np.abs(dot(cross(rec.w1, rec.w3), rec.psi))
+    return q * transmittance_of(rec, rec.t1 + rec.t3) if short else q
+
+
+@twin(density_t1t3)
+def _density_t1t3(rec, short):
+    q = rec.pdf.t2 * rec.pdf.w2 * rec.pdf.w1 * abs(dot(cross(rec.w1, rec.w3), rec.psi))
+    return q * transmittance_of(rec, rec.t1 + rec.t3) if short else q
+
+
+# ------------------------------------------------------------------------- MIS: [t2, t3]
+def reconstruct_t2t3(rec, G, hit):
+    """The hit's full path: ``t3*``, ``t2*`` and the rebuilt ``x2*, x1*``."""
+    x2, x1 = vertices(G, hit)
+    return rec.with_(t3=hit.t3, t2=hit.tv, x2=x2, x1=x1)
+
+
+@twin(reconstruct_t2t3)
+def _reconstruct_t2t3(rec, G, hit):
+    return with_t2(with_t3(rec, hit.t3), hit.tv)
+
+
+def density_t2t3(rec, short):
+    """Relative ``Q = p(w2) p(w1) p(t1) |(w2 x w3) . psi|`` (short: ``* E(t2 + t3)``)."""
+    q = rec.pdf.t1 * rec.pdf.w2 * rec.pdf.w1 * np.abs(dot(cross(rec.w2, rec.w3), rec.psi))
+    return q * transmittance_of(rec, rec.t2 + rec.t3) if short else q
+
+
+@twin(density_t2t3)
+def _density_t2t3(rec, short):
+    q = rec.pdf.t1 * rec.pdf.w2 * rec.pdf.w1 * abs(dot(cross(rec.w2, rec.w3), rec.psi))
+    return q * transmittance_of(rec, rec.t2 + rec.t3) if short else q
+
+
+_COMPILED = {
+    which: Compiled(GPlaneGeometry, GPlaneHit, 1, roots, accept, visibility, contribution,
+                    segments, rec_fn, dens_fn)
+    for which, rec_fn, dens_fn in (("t1t3", reconstruct_t1t3, density_t1t3),
+                                   ("t2t3", reconstruct_t2t3, density_t2t3))
+}
+
+
+# ------------------------------------------------------------------------- Create
 class GeneralizedPlane(Technique):
     """Generalized plane ``[t1, t3]`` (``which="t1t3"``) or ``[t2, t3]`` (``"t2t3"``)."""
 
@@ -64,8 +246,8 @@ class GeneralizedPlane(Technique):
         self.short = short
         self.which = which
         self.name = f"plane-{which}" + ("-short" if short else "")
+        self.compiled = _COMPILED[which]
 
-    # ------------------------------------------------------------------ Create
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=3)
         g = gather(paths, photon, K)
@@ -87,73 +269,12 @@ class GeneralizedPlane(Technique):
         lo, hi = clip_bounds(ctx.scene, lo, hi)
         hull = (wedge_hull(ctx.scene, origin, u, v, Tu, Tv) if self.short
                 else wedge_hull(ctx.scene, origin, u, v))
-        return Primitives(self.name, photon, K, lo, hi,
-                          dict(origin=origin, x3=g["x3"], w3=u, v=v, w2=g["w2"], w1=g["w1"],
-                               Tu=Tu, Tv=Tv, T2=g["T2"]), hull=hull)
+        data = table(GPlaneGeometry, origin=origin, w3=u, v=v, Tu=Tu, Tv=Tv, x3=g["x3"],
+                     w2=g["w2"], w1=g["w1"], T2=g["T2"], fixed=float(self.which == "t1t3"),
+                     own=own_segment(paths, photon, K - 2, g["x3"], ctx.scene),
+                     beta=beta1(paths, photon, K))
+        return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
 
-    # ------------------------------------------------------------------ Intersect
-    def intersect(self, prims, rays, ray, prim, ctx) -> Hits:
-        d = prims.data
-        t3, tv, s, ndp = plane_solve(d["origin"][prim], d["w3"][prim], d["v"][prim],
-                                     rays.o[ray], rays.d[ray])
-        with np.errstate(invalid="ignore"):
-            ok = (ndp > NDP_MIN) & (t3 > 0) & (tv > 0) & on_ray(rays, ray, s)
-            if self.short:
-                ok &= (t3 < d["Tu"][prim]) & (tv < d["Tv"][prim])
-        keep = np.flatnonzero(ok)
-        return Hits(ray[keep], prim[keep], s[keep],
-                    dict(t3=t3[keep], tv=tv[keep], n_dot_psi=ndp[keep]))
-
-    # ------------------------------------------------------------------ Evaluate
-    def _vertices(self, hits, prims):
-        """Rebuilt ``x2*, x1*`` (H, 3) of each hit."""
-        d, p = prims.data, hits.prim
-        x2 = d["x3"][p] + hits.data["t3"][:, None] * d["w3"][p]
-        step = d["T2"][p] if self.which == "t1t3" else hits.data["tv"]
-        return x2, x2 + step[:, None] * d["w2"][p]
-
-    def evaluate(self, hits, prims, paths, rays, ctx) -> np.ndarray:
-        scene = ctx.scene
-        p = hits.prim
-        d = prims.data
-        x2, x1 = self._vertices(hits, prims)
-        x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        photon, K = prims.photon[p], prims.K[p]
-        own = on_own_segment(scene, paths, photon, K - 2, hits.data["t3"], d["Tu"][p],
-                             d["x3"][p])
-        ok = clear_from(scene, ctx.blockers, d["x3"][p], x2, own)
-        ok &= in_medium(scene, x1)
-        valid = segments_clear(ctx.blockers, (x2, x1), (x1, x0), ok=ok)
-        # beta_1^- st [E(t3*) E(t_a*)] ss rho0 E(s) / |n . psi|
-        scal = scene.medium.sigma_t * camera_vertex(scene, rays, hits, d["w1"][p])
-        if not self.short:
-            scal = scal * transmittance(ctx, hits.data["t3"], hits.data["tv"])
-        return finish(beta1(paths, prims.photon[p], prims.K[p]), scal, valid,
-                      hits.data["n_dot_psi"])
-
-    # ------------------------------------------------------------------ Fused
-    def fused_pass(self, prims, paths, rays, ctx):
-        """Intersect + Evaluate in one compiled loop (:mod:`.surfaces_fused`)."""
-        from .surfaces_fused import surface_chunks
-
-        return surface_chunks(self, self.which, prims, paths, rays, ctx)
-
-    # ------------------------------------------------------------------ Reconstruct
-    def reconstruct(self, hits, prims, paths, rays, ctx):
-        p = hits.prim
-        rec = photon_record(paths, prims.photon[p], prims.K[p], ctx.scene, rays, hits.ray, hits.s)
-        x2, x1 = self._vertices(hits, prims)
-        tv = "t1" if self.which == "t1t3" else "t2"
-        return rec.with_(t3=hits.data["t3"], x2=x2, x1=x1, **{tv: hits.data["tv"]})
-
-    def density(self, rec, ctx):
-        """Relative ``Q`` (``q_{<=w3}`` dropped): ``p(t2) p(w2) p(w1) |(w1 x w3).psi|``
-        (t1t3) or ``p(w2) p(w1) p(t1) |(w2 x w3).psi|`` (t2t3); short: ``* E(t_a + t3)``."""
-        pdf = Pdfs(rec, ctx.scene)
-        n = scaled_normal(self.which, rec.w3, rec.w2, rec.w1)
-        other = pdf.t2 if self.which == "t1t3" else pdf.t1
-        q = other * pdf.w2 * pdf.w1 * np.abs(dot(n, rec.psi))
-        if self.short:
-            ta = rec.t1 if self.which == "t1t3" else rec.t2
-            q = q * transmittance(ctx, ta, rec.t3)
-        return q
+    def scaled_normal(self, rec):
+        """(H, 3) scaled normal on records ``rec`` (the inspector's)."""
+        return scaled_normal(self.which, rec.w3, rec.w2, rec.w1)

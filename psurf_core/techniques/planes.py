@@ -8,43 +8,217 @@ hits it where ``x2 + t2 w2 + t1 w1 = c + s psi``; the Jacobian of that change of
 * ``plane-t1t2`` (long): ``t1, t2 > 0``, contribution keeps ``exp(-st (t1 + t2))``;
 * ``planes`` = ``plane-t1t2-short``: ``t2 < T2, t1 < T1`` (the photon's own flights, a
   parallelogram, as in Tungsten) and the transmittances are dropped (track-length).
+
+``X = beta_2 E(t2) ss [rho/p(w1) = 1] E(t1) ss rho0 E(s) / |n . psi|``; with the weight read
+after ``x1`` (``beta_1^- = beta_2 ss/st / q_roulette(x1)``: ``w1`` was sampled only if the
+photon survived roulette at ``x1``) that is ``beta_1^- st ss rho0 E(...) / |n . psi|``.
+
+``Q = q_{<=w2} p(w1) |(w1 x w2) . psi|`` (short: ``* E(t1) E(t2)``).
+
+Cramer's rule for ``[w2 w1 -psi] (t2, t1, s) = c - x2 = b``: with triple-product identities
+every determinant is a dot product of ``psi`` with a per-primitive vector (:func:`solver`):
+``det = (w1 x w2).psi, t2 det = (w1 x b).psi, t1 det = (b x w2).psi, s det = w2.(w1 x b)``.
+For a pinhole camera ``b`` depends on the primitive only, so Create computes those vectors
+once per plane for the camera's position and a candidate pair costs three dot products.
+Each numpy function has its compiled twin (``@twin``) beneath it; see :mod:`.cones`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from ..path_record import Pdfs, photon_record
-from ..sampling import phase_value
+from ..kernels.jit import twin
+from ..kernels.shadow import BLOCKED, CLEAR, status
+from ..kernels.vec import madd, sub
+from ..path_record import with_t1, with_t2
+from ..records import Vec, table
 from .base import (
-    Hits,
-    PassContext,
+    Compiled,
     Primitives,
     Technique,
-    camera_transmittance,
-    clear_from,
     clip_bounds,
+    cross,
     dot,
-    on_own_segment,
-    on_ray,
     ray_bounds,
     segments_clear,
     wedge_hull,
 )
+from .surface_common import (
+    beta1,
+    camera_term,
+    own_segment,
+    q_to_w2,
+    rebuilt_clear,
+    transmittance_of,
+)
 
 
+class PlaneGeometry(NamedTuple):
+    """One photon plane (a row of its ``Primitives.data``)."""
+
+    x2: Vec  # plane origin: the photon's vertex x2
+    w2: Vec
+    w1: Vec
+    T2: float  # the photon's flights (the short plane's extent)
+    T1: float
+    own: float  # 1: segment x2 -> x1 is the photon's own, clear for t2 < T2
+    beta: Vec  # beta_1^- (W)
+    origin: Vec  # the camera position the solver vectors below were computed for
+    m0: Vec  # solver vectors (:func:`solver`) for rays from ``origin``
+    m1: Vec
+    m2: Vec
+    sdet: float
+
+
+class PlaneHit(NamedTuple):
+    """One plane hit (a row of its ``Hits.data``)."""
+
+    t2: float
+    t1: float
+    n_dot_psi: float  # |(w1 x w2) . psi|
+
+
+# ------------------------------------------------------------------------- Intersect
+def solver(x2, w2, w1, o):
+    """The solve's vectors for rays from ``o``: ``m0 = w1 x w2``, ``m1 = w1 x b``,
+    ``m2 = b x w2`` and ``sdet = w2 . (w1 x b)``, ``b = o - x2``."""
+    b = o - x2
+    w1xb = cross(w1, b)
+    return cross(w1, w2), w1xb, cross(b, w2), dot(w2, w1xb)
+
+
+@twin(solver)
+def _solver(x2, w2, w1, o):
+    b = sub(o, x2)
+    w1xb = cross(w1, b)
+    return cross(w1, w2), w1xb, cross(b, w2), dot(w2, w1xb)
+
+
+def solve(G, o, psi):
+    """``(det, t2, t1, s)`` of the pairs (Cramer's rule; inf / NaN where singular)."""
+    m0, m1, m2, sdet = solver(G.x2, G.w2, G.w1, o)
+    det = dot(m0, psi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        return det, dot(m1, psi) * inv, dot(m2, psi) * inv, sdet * inv
+
+
+@twin(solve)
+def _solve(G, o, psi):
+    if o[0] == G.origin[0] and o[1] == G.origin[1] and o[2] == G.origin[2]:
+        m0, m1, m2, sdet = G.m0, G.m1, G.m2, G.sdet  # the camera's: computed by Create
+    else:
+        m0, m1, m2, sdet = solver(G.x2, G.w2, G.w1, o)
+    det = dot(m0, psi)
+    inv = 1.0 / det
+    return det, dot(m1, psi) * inv, dot(m2, psi) * inv, sdet * inv
+
+
+def roots(G, o, psi):
+    """(1, N) ray distance of the plane hit."""
+    return solve(G, o, psi)[3][None]
+
+
+@twin(roots)
+def _roots(G, o, psi):
+    return (solve(G, o, psi)[3],)
+
+
+def accept(G, o, psi, s, short):
+    """Hits: in the quadrant ``t1, t2 > 0`` (the parallelogram ``t < T`` if short)."""
+    det, t2, t1, _ = solve(G, o, psi)
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(1.0 / det) & (t2 > 0) & (t1 > 0)
+        if short:
+            ok &= (t2 < G.T2) & (t1 < G.T1)
+    return ok, table(PlaneHit, t2=t2, t1=t1, n_dot_psi=np.abs(det))
+
+
+@twin(accept)
+def _accept(G, o, psi, s, short):
+    det, t2, t1, _ = solve(G, o, psi)
+    ok = np.isfinite(1.0 / det) and t2 > 0.0 and t1 > 0.0 and (
+        not short or (t2 < G.T2 and t1 < G.T1))
+    return ok, PlaneHit(t2, t1, abs(det))
+
+
+# ------------------------------------------------------------------------- Evaluate
+def segments(G, x0, hit):
+    """The reconstructed path's segments: ``x2 -> x1*``, ``x1* -> x0``."""
+    x1 = G.x2 + hit.t2[:, None] * G.w2
+    return [(G.x2, x1), (x1, x0)]
+
+
+def visibility(G, x0, hit, medium, blockers):
+    """(H,) bool: ``x2 -> x1*`` counts (own segment, or ``x1*`` in the box and clear) and
+    ``x1* -> x0`` is unoccluded."""
+    x1 = G.x2 + hit.t2[:, None] * G.w2
+    known = (G.own != 0.0) & (hit.t2 < G.T2)
+    return segments_clear(blockers, (x1, x0),
+                          ok=rebuilt_clear(G.x2, x1, known, medium, blockers))
+
+
+@twin(visibility)
+def _visibility(G, x0, hit, medium, blockers):
+    x1 = madd(G.x2, hit.t2, G.w2)
+    st0 = rebuilt_clear(G.x2, x1, G.own != 0.0 and hit.t2 < G.T2, medium, blockers)
+    st1 = CLEAR if st0 == BLOCKED else status(x1, x0, blockers)
+    return st0, st1, CLEAR
+
+
+def contribution(G, psi, s, s_min, hit, short, medium):
+    """``st [E(t1* + t2*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight."""
+    extra = 0.0 if short else hit.t1 + hit.t2
+    return medium.sigma_t * camera_term(-dot(G.w1, psi), s - s_min, extra, medium) / \
+        hit.n_dot_psi
+
+
+@twin(contribution)
+def _contribution(G, psi, s, s_min, hit, short, medium):
+    extra = 0.0 if short else hit.t1 + hit.t2
+    return medium.sigma_t * camera_term(-dot(G.w1, psi), s - s_min, extra, medium) / \
+        hit.n_dot_psi
+
+
+# ------------------------------------------------------------------------- MIS
+def reconstruct(rec, G, hit):
+    """The hit's full path: ``t2*``, ``t1*`` and ``x1* = x2 + t2* w2``."""
+    return rec.with_(t2=hit.t2, t1=hit.t1, x1=rec.x2 + hit.t2[:, None] * rec.w2)
+
+
+@twin(reconstruct)
+def _reconstruct(rec, G, hit):
+    return with_t1(with_t2(rec, hit.t2), hit.t1)  # (no compiled density reads x1)
+
+
+def density(rec, short):
+    """Relative ``Q = q_{<=w2} p(w1) |(w1 x w2) . psi|`` (short: ``* E(t1) E(t2)``)."""
+    q = q_to_w2(rec) * rec.pdf.w1 * np.abs(dot(cross(rec.w1, rec.w2), rec.psi))
+    return q * transmittance_of(rec, rec.t1 + rec.t2) if short else q
+
+
+@twin(density)
+def _density(rec, short):
+    q = q_to_w2(rec) * rec.pdf.w1 * abs(dot(cross(rec.w1, rec.w2), rec.psi))
+    return q * transmittance_of(rec, rec.t1 + rec.t2) if short else q
+
+
+# ------------------------------------------------------------------------- Create
 class PhotonPlane(Technique):
     """The photon plane ``[t1, t2]``; ``short`` selects the Tungsten (track-length) variant."""
 
     family = "planes"
     min_k = 2
+    compiled = Compiled(PlaneGeometry, PlaneHit, 1, roots, accept, visibility, contribution,
+                        segments, reconstruct, density)
 
     def __init__(self, short: bool):
         self.short = short
         self.name = "plane-t1t2-short" if short else "plane-t1t2"
 
-    # ------------------------------------------------------------------ Create
-    def create(self, paths, ctx: PassContext) -> Primitives:
+    def create(self, paths, ctx) -> Primitives:
         scene = ctx.scene
         lmask = self.light_mask(paths, scene)
         photon, kk = [], []
@@ -71,98 +245,13 @@ class PhotonPlane(Technique):
         lo, hi = clip_bounds(scene, lo, hi)
         hull = (wedge_hull(scene, x2, w2, w1, T2, T1) if self.short
                 else wedge_hull(scene, x2, w2, w1))
-        return Primitives(self.name, photon, K, lo, hi,
-                          dict(x2=x2, w2=w2, w1=w1, T2=T2, T1=T1), hull=hull)
+        eye = np.broadcast_to(np.asarray(scene.camera.position, float), x2.shape)
+        m0, m1, m2, sdet = solver(x2, w2, w1, eye)
+        data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1,
+                     own=own_segment(paths, photon, K - 1, x2, scene),
+                     beta=beta1(paths, photon, K), origin=eye, m0=m0, m1=m1, m2=m2, sdet=sdet)
+        return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
 
-    # ------------------------------------------------------------------ Intersect
-    def intersect(self, prims, rays, ray, prim, ctx) -> Hits:
-        d = prims.data
-        psi = rays.d[ray]
-        # Cramer's rule for [w2 w1 -psi] (t2, t1, s) = c - x2 = b. With triple-product
-        # identities every determinant is a dot product of psi with a per-primitive vector:
-        #   det = (w1 x w2).psi, t2 det = (w1 x b).psi, t1 det = (b x w2).psi,
-        #   s det = w2.(w1 x b).
-        # For a pinhole camera b depends on the primitive only, so the pairs cost 3 dots.
-        if rays.origin is not None:
-            if "m" not in d:
-                d.update(_plane_solver(d["x2"], d["w2"], d["w1"], rays.origin))
-            m, sdet = d["m"][prim], d["sdet"][prim]
-        else:
-            sol = _plane_solver(d["x2"][prim], d["w2"][prim], d["w1"][prim], rays.o[ray])
-            m, sdet = sol["m"], sol["sdet"]
-        v = np.einsum("ijk,ik->ij", m, psi)  # (H, 3): det, t2 det, t1 det
-        det = v[:, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / det
-            t2 = v[:, 1] * inv
-            t1 = v[:, 2] * inv
-            s = sdet * inv
-        ok = np.isfinite(inv) & (t2 > 0) & (t1 > 0) & on_ray(rays, ray, s)
-        if self.short:
-            ok &= (t2 < d["T2"][prim]) & (t1 < d["T1"][prim])
-        keep = np.flatnonzero(ok)
-        return Hits(ray[keep], prim[keep], s[keep],
-                    dict(t2=t2[keep], t1=t1[keep], n_dot_psi=np.abs(det[keep])))
-
-    # ------------------------------------------------------------------ Evaluate
-    def evaluate(self, hits, prims, paths, rays, ctx) -> np.ndarray:
-        scene = ctx.scene
-        med = scene.medium
-        p = hits.prim
-        d = prims.data
-        photon, K = prims.photon[p], prims.K[p]
-        x2, w2, w1 = d["x2"][p], d["w2"][p], d["w1"][p]
-        t2, t1 = hits.data["t2"], hits.data["t1"]
-        x1 = x2 + t2[:, None] * w2
-        x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        own = on_own_segment(scene, paths, photon, K - 1, t2, d["T2"][p], x2)
-        valid = segments_clear(ctx.blockers, (x1, x0),
-                               ok=clear_from(scene, ctx.blockers, x2, x1, own))
-        rho0 = phase_value(-dot(w1, rays.d[hits.ray]), med.phase.g)
-        # beta_2 E(t2) ss [rho/p(w1) = 1] E(t1) ss rho0 E(s) / |n . psi|. The weight is read
-        # after x1 (beta leaving x1 = beta_2 ss/st / q_roulette(x1)): w1 was sampled only if
-        # the photon survived roulette at x1, so that survival must be divided out.
-        scal = med.sigma_t * med.sigma_s * rho0 * camera_transmittance(scene, rays, hits.ray,
-                                                                      hits.s)
-        if not self.short:
-            scal = scal * np.exp(-med.sigma_t * (t1 + t2))
-        with np.errstate(divide="ignore"):
-            scal = np.where(valid, scal / hits.data["n_dot_psi"], 0.0)
-        return paths.beta[photon, K - 1] * scal[:, None]
-
-    # ------------------------------------------------------------------ Fused
-    def fused_pass(self, prims, paths, rays, ctx):
-        """Intersect + Evaluate in one compiled loop (:mod:`.planes_fused`)."""
-        from .planes_fused import plane_chunks
-
-        return plane_chunks(self, prims, paths, rays, ctx)
-
-    # ------------------------------------------------------------------ Reconstruct
-    def reconstruct(self, hits, prims, paths, rays, ctx):
-        p = hits.prim
-        rec = photon_record(paths, prims.photon[p], prims.K[p], ctx.scene, rays, hits.ray, hits.s)
-        t2, t1 = hits.data["t2"], hits.data["t1"]
-        return rec.with_(t2=t2, t1=t1, x1=rec.x2 + t2[:, None] * rec.w2)
-
-    def density(self, rec, ctx):
-        """``q_{<=w2} p(w1) |(w1 x w2) . psi|`` (short: ``* E(t1) E(t2)``)."""
-        pdf = Pdfs(rec, ctx.scene)
-        q = np.where(rec.K >= 3, pdf.t3, 1.0) * pdf.w2 * pdf.w1
-        q = q * np.abs(dot(np.cross(rec.w1, rec.w2), rec.psi))
-        if self.short:
-            q = q * np.exp(-ctx.scene.medium.sigma_t * (rec.t1 + rec.t2))
-        return q
-
-
-def _plane_solver(x2, w2, w1, c):
-    """Per-primitive vectors of the plane solve (see ``PhotonPlane.intersect``).
-
-    Returns
-    -------
-    dict with ``m`` (M, 3, 3): rows ``w1 x w2``, ``w1 x b``, ``b x w2``; ``sdet`` (M,):
-    ``w2 . (w1 x b)``, where ``b = c - x2``.
-    """
-    b = c - x2
-    w1xb = np.cross(w1, b)
-    m = np.stack([np.cross(w1, w2), w1xb, np.cross(b, w2)], axis=1)
-    return {"m": m, "sdet": dot(w2, w1xb)}
+    def scaled_normal(self, rec):
+        """(H, 3) ``w1 x w2`` on records ``rec``."""
+        return cross(rec.w1, rec.w2)

@@ -17,11 +17,17 @@ contribution is therefore written in terms of :func:`beta1`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from ..geometry import inside_box
+from ..kernels.jit import twin
+from ..kernels.shadow import BLOCKED, CLEAR, status
+from ..kernels.vec import norm, scale, sub
 from ..path_record import PathRecord, Pdfs
 from ..sampling import phase_value
-from .base import PassContext, Technique, camera_transmittance, dot
+from .base import PassContext, Technique, camera_transmittance, cross, dot
 
 #: ``|n . psi|`` at or below this is a measure-zero grazing hit: dropped, so that no division
 #: by zero (or an overflow to inf) can reach the image.
@@ -104,6 +110,53 @@ def unit(v: np.ndarray):
     return v / np.where(n > 0.0, n, 1.0)[:, None], n
 
 
+@twin(unit)
+def _unit(v):
+    n = norm(v)
+    d = n if n > 0.0 else 1.0
+    return (v[0] / d, v[1] / d, v[2] / d), n
+
+
+def own_segment(paths, photon: np.ndarray, j: np.ndarray, start: np.ndarray,
+                scene) -> np.ndarray:
+    """(M,) float 0/1: the per-primitive part of ``base.on_own_segment``: the photon's own
+    segment ``j`` (tracer numbering) is unoccluded with its vertices in the box, and
+    (``j = 1``) its start, the light, lies in the box. A point ``start + t w`` with
+    ``t < T`` of such a segment is known to be reached unoccluded inside the box."""
+    pk = paths.prefix_ok
+    own = pk.reshape(-1)[photon * pk.shape[1] + j].copy()
+    light = np.flatnonzero(own & (j == 1))
+    if light.size:
+        med = scene.medium
+        own[light] = inside_box(start[light], med.bounds_min, med.bounds_max)
+    return own.astype(float)
+
+
+def rebuilt_clear(a, b, known, medium, blockers):
+    """(H,) bool: the segment ``a -> b`` to a rebuilt vertex ``b`` counts: ``known`` clear
+    (on the photon's own segment), or ``b`` inside the box and the segment unoccluded."""
+    ok = known.copy()
+    idx = np.flatnonzero(~known)
+    if idx.size:
+        inb = inside_box(b[idx], medium.bounds_min, medium.bounds_max)
+        res = np.zeros(idx.size, dtype=bool)
+        k = np.flatnonzero(inb)
+        if k.size:
+            res[k] = ~blockers.occluded(a[idx][k], b[idx][k])
+        ok[idx] = res
+    return ok
+
+
+@twin(rebuilt_clear)
+def _rebuilt_clear(a, b, known, medium, blockers):
+    """The segment's shadow status (``kernels.shadow``)."""
+    if known:
+        return CLEAR
+    if not inside_box(b, medium.bounds_min, medium.bounds_max):
+        return BLOCKED
+    return status(a, b, blockers)
+
+
 # ------------------------------------------------------------------------- bounds
 def circle_extent(axis: np.ndarray, r: np.ndarray) -> np.ndarray:
     """(M, 3) per-coordinate half-extent of circles of radius ``r`` about unit ``axis``."""
@@ -158,6 +211,18 @@ def quadratic_roots(a, h, c):
     return np.where((disc >= 0.0) & np.isfinite(r), r, np.nan)
 
 
+@twin(quadratic_roots)
+def _quadratic_roots(a, h, c):
+    """``(r0, r1)``, NaN where missing."""
+    disc = h * h - a * c
+    if not disc >= 0.0:  # a miss (most candidate pairs): no square root, no divisions
+        return np.nan, np.nan
+    q = -(h + math.copysign(np.sqrt(disc), h))
+    r0 = q / a
+    r1 = c / q
+    return (r0 if np.isfinite(r0) else np.nan), (r1 if np.isfinite(r1) else np.nan)
+
+
 def closest_shift(o: np.ndarray, d: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """(H,) ``s`` of the point of ray ``o + s d`` closest to ``centre``; solving for
     ``s - shift`` instead of ``s`` keeps the quadratics' coefficients well conditioned."""
@@ -179,6 +244,19 @@ def camera_vertex(scene, rays, hits, w1: np.ndarray) -> np.ndarray:
     return med.sigma_s * rho0 * camera_transmittance(scene, rays, hits.ray, hits.s)
 
 
+def camera_term(mu, ds, extra, medium):
+    """``ss rho(mu) E(ds + extra)``: the scattering at ``x0 = y(s)`` towards the camera
+    (``mu = -w1 . psi``), the camera segment's transmittance over ``ds = s - s_min`` and a
+    long technique's transmittance over its integrated distances ``extra`` (0 for short
+    ones), in one exponential."""
+    return medium.sigma_s * phase_value(mu, medium.g) * np.exp(-medium.sigma_t * (ds + extra))
+
+
+@twin(camera_term)
+def _camera_term(mu, ds, extra, medium):
+    return medium.sigma_s * phase_value(mu, medium.g) * np.exp(-medium.sigma_t * (ds + extra))
+
+
 def finish(beta: np.ndarray, scal: np.ndarray, valid: np.ndarray, ndp: np.ndarray):
     """(H, 3) ``beta * scal / ndp`` where ``valid``, else 0 (``ndp > NDP_MIN`` on hits)."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -187,10 +265,26 @@ def finish(beta: np.ndarray, scal: np.ndarray, valid: np.ndarray, ndp: np.ndarra
 
 
 # ------------------------------------------------------------------------- densities
-def q_to_w2(rec: PathRecord, pdf: Pdfs) -> np.ndarray:
+def q_to_w2(rec: PathRecord, pdf: Pdfs | None = None) -> np.ndarray:
     """(H,) relative ``q_{<= w2}``: ``p(t3) p(w2)`` (``K >= 3``) or the emission pdf ``p(w2)``
     (``K = 2``; the light-position pdf is shared and dropped, ``path_record``)."""
+    pdf = rec.pdf if pdf is None else pdf
     return np.where(rec.K >= 3, pdf.t3, 1.0) * pdf.w2
+
+
+@twin(q_to_w2)
+def _q_to_w2(rec, pdf=None):
+    return (rec.pdf.t3 if rec.K >= 3 else 1.0) * rec.pdf.w2
+
+
+def transmittance_of(rec, t):
+    """``exp(-st t)`` on a record: the short variants' extra density factor."""
+    return np.exp(-rec.st * t)
+
+
+@twin(transmittance_of)
+def _transmittance_of(rec, t):
+    return np.exp(-rec.st * t)
 
 
 def transmittance(ctx: PassContext, *ts) -> np.ndarray:
@@ -209,13 +303,23 @@ def plane_solve(o, u, v, c, psi):
         ``|(v x u) . psi|``, the Jacobian ``|det[u, v, -psi]|`` (scaled normal ``v x u``).
     """
     r = c - o
-    det = dot(np.cross(v, u), psi)
+    det = dot(cross(v, u), psi)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / det
-        a = dot(r, np.cross(v, -psi)) * inv
-        b = dot(u, np.cross(r, -psi)) * inv
-        s = dot(u, np.cross(v, r)) * inv
+        a = dot(r, cross(v, -psi)) * inv
+        b = dot(u, cross(r, -psi)) * inv
+        s = dot(u, cross(v, r)) * inv
     return a, b, s, np.abs(det)
+
+
+@twin(plane_solve)
+def _plane_solve(o, u, v, c, psi):
+    r = sub(c, o)
+    det = dot(cross(v, u), psi)
+    inv = 1.0 / det
+    m = scale(-1.0, psi)
+    return (dot(r, cross(v, m)) * inv, dot(u, cross(r, m)) * inv, dot(u, cross(v, r)) * inv,
+            abs(det))
 
 
 def quartic_real_roots(coef: np.ndarray, newton: int = 4) -> np.ndarray:

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from psurf_core.techniques.base import fields_of
+
 from ._vtk import pv
 from .scene_view import (
     FONT,
@@ -200,7 +202,7 @@ def _half_disk_grid(apex, axis, er, length, theta_max, nth=20) -> np.ndarray:
 def _draw_family(tech, prims, idx: np.ndarray, scene, radius: float):
     """Geometry of primitives ``idx`` of one technique (unclipped), or None if the family's
     layout is unknown. Raises KeyError when an expected data field is missing."""
-    d = {k: v[idx] for k, v in prims.data.items()}
+    d = {k: v[idx] for k, v in fields_of(prims.data).items()}
     m = idx.size
     far = 3.0 * scene.medium.diagonal
     short = bool(getattr(tech, "short", False))

@@ -5,30 +5,49 @@
 (:func:`_clip_project`), projects it, and writes its per-row column spans ``[c0, c1)`` within
 the primitive's screen rectangle (:func:`_screen_rects`, :func:`_row_spans_into`), padded by
 ``binning._SPAN_MARGIN`` pixels, so rounding changes only which misses are tried. Many
-primitives are cut into pieces for threads (:mod:`.fused_threads`); the spans are the same
-for any thread count. Used by the fused plane and surface kernels (:mod:`.planes_fused`,
-:mod:`.surfaces_fused`); compiled once per clone (``cache=True``)."""
+primitives are cut into pieces for threads (:mod:`.threads`); the spans are the same for any
+thread count. The walkers (:mod:`.walk`) visit these spans.
+
+The camera is passed as a :class:`CameraRow` record."""
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
-from numba import njit
 
 from ..binning import _NEAR, _SPAN_MARGIN, screen_rects
-from .fused_threads import PIECES_PER_THREAD, on_threads, thread_count
+from ..records import Vec
+from .jit import inline, kernel
+from .threads import PIECES_PER_THREAD, on_threads, thread_count
 
 
-@njit(cache=True, error_model="numpy")
-def _project(x, y, z, cam):  # pragma: no cover - compiled
-    """``camera.project`` of one point; ``cam`` as in :func:`hull_spans`."""
-    vx, vy, vz = x - cam[0], y - cam[1], z - cam[2]
-    depth = vx * cam[3] + vy * cam[4] + vz * cam[5]
-    u = (vx * cam[6] + vy * cam[7] + vz * cam[8]) / (depth * cam[12] * cam[13])
-    w = (vx * cam[9] + vy * cam[10] + vz * cam[11]) / (depth * cam[12])
-    return (u + 1.0) * 0.5 * cam[14], (1.0 - w) * 0.5 * cam[15], depth
+class CameraRow(NamedTuple):
+    """What the compiled projection reads of a camera (:func:`camera_row`)."""
+
+    position: Vec
+    forward: Vec
+    right: Vec
+    image_up: Vec
+    tan_half: float  # tan(fov_y / 2)
+    aspect: float  # width / height
+    width: float  # pixels
+    height: float
 
 
-@njit(cache=True, error_model="numpy")
+@inline
+def _project(x, y, z, cam):
+    """``camera.project`` of one point (``cam``: :class:`CameraRow`)."""
+    vx, vy, vz = x - cam.position[0], y - cam.position[1], z - cam.position[2]
+    depth = vx * cam.forward[0] + vy * cam.forward[1] + vz * cam.forward[2]
+    u = ((vx * cam.right[0] + vy * cam.right[1] + vz * cam.right[2])
+         / (depth * cam.tan_half * cam.aspect))
+    w = (vx * cam.image_up[0] + vy * cam.image_up[1] + vz * cam.image_up[2]) / (
+        depth * cam.tan_half)
+    return (u + 1.0) * 0.5 * cam.width, (1.0 - w) * 0.5 * cam.height, depth
+
+
+@inline
 def _clip_int(v, hi):  # pragma: no cover - compiled
     """``np.clip(np.nan_to_num(v), 0, hi).astype(int64)`` of one value."""
     if np.isnan(v):
@@ -36,7 +55,7 @@ def _clip_int(v, hi):  # pragma: no cover - compiled
     return int(min(max(v, 0.0), hi))
 
 
-@njit(cache=True, error_model="numpy")
+@inline
 def _corner(lo, hi, upper):  # pragma: no cover - compiled
     """One coordinate of a box corner; a non-finite bound stands for -+1e30."""
     if upper:
@@ -44,12 +63,12 @@ def _corner(lo, hi, upper):  # pragma: no cover - compiled
     return lo if np.isfinite(lo) else -1e30
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
+@kernel(nogil=True)
 def _screen_rects(lo, hi, cam):  # pragma: no cover - compiled
     """``binning.screen_rects`` (conservative pixel rectangles of finite boxes
     ``[lo, hi]``)."""
     m = lo.shape[0]
-    w, h = cam[14], cam[15]
+    w, h = cam.width, cam.height
     x0 = np.zeros(m, np.int64)
     x1 = np.zeros(m, np.int64)
     y0 = np.zeros(m, np.int64)
@@ -88,7 +107,7 @@ def _screen_rects(lo, hi, cam):  # pragma: no cover - compiled
     return x0, x1, y0, y1
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
+@kernel(nogil=True)
 def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
     """Per primitive: the hull polygon clipped to ``planes`` (rows ``(n, offset)``: keep
     ``x . n >= offset``; Sutherland-Hodgman as ``binning.clip_polygons``), projected to
@@ -167,7 +186,7 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
     return px, py, count, r0, nr
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
+@kernel(nogil=True)
 def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - compiled
     """Per-row column spans ``[c0, c1)`` of the projected polygons of :func:`_clip_project`
     (each polygon edge clipped to the row's strip widened by ``_SPAN_MARGIN``, as
@@ -187,7 +206,7 @@ def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - comp
     return n, o_prim, o_row, o_c0, o_c1
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
+@kernel(nogil=True)
 def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o_c1,
                     n):  # pragma: no cover - compiled
     """:func:`_row_spans` written to the given arrays from entry ``n``, primitive ``i`` named
@@ -237,13 +256,15 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
     return n
 
 
-def _camera_vector(cam) -> np.ndarray:
-    """(16,) float: position, forward, right, image-up, ``tan(fov_y / 2)``, aspect, width,
-    height (what the compiled projection reads)."""
+def camera_row(cam) -> CameraRow:
+    """The :class:`CameraRow` of a :class:`~psurf_core.scene.Camera`."""
+
+    def v(a):
+        return tuple(float(x) for x in a)
+
     th = float(np.tan(np.radians(cam.fov_y) / 2.0))
-    return np.concatenate([np.asarray(cam.position, float), np.asarray(cam.forward, float),
-                           np.asarray(cam.right, float), np.asarray(cam.image_up, float),
-                           [th, cam.width / cam.height, cam.width, cam.height]])
+    return CameraRow(v(cam.position), v(cam.forward), v(cam.right), v(cam.image_up), th,
+                     cam.width / cam.height, float(cam.width), float(cam.height))
 
 
 #: Non-empty once the threaded path's kernel (:func:`_row_spans_into`) is loaded in this
@@ -268,7 +289,7 @@ def hull_spans(cam, lo, hi, hull, box):
     planes = np.array([row for ax in range(3)
                        for row in (np.append(eye[ax], bmin[ax]), np.append(-eye[ax], -bmax[ax]))]
                       + [np.append(fwd, float(fwd @ np.asarray(cam.position, float)) + _NEAR)])
-    camv = _camera_vector(cam)
+    camv = camera_row(cam)
     c = np.ascontiguousarray
     lo, hi, hull = c(lo, float), c(hi, float), c(hull, float)
     # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored

@@ -1,10 +1,10 @@
-"""Threads for the fused kernels: how many to use and the helper threads that run the pieces.
+"""Threads for the walkers: how many to use and the helper threads that run the pieces.
 
 :func:`thread_count` is numba's thread count (``numba.set_num_threads``,
 ``NUMBA_NUM_THREADS``; 1 in pass-pool workers, which already fill the cores), at most the cores
 other processes leave idle (:class:`_OtherLoad`). :func:`on_threads` hands numbered pieces of
 work to this thread and to shared helper threads (the compiled kernels release the GIL). The
-callers (:mod:`.planes_fused`, :mod:`.fused_spans`) cut their work so that the result does not
+callers (:mod:`.fused`, :mod:`.spans`) cut their work so that the result does not
 depend on which thread ran which piece: the thread count changes the time, never the image."""
 
 from __future__ import annotations

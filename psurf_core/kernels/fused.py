@@ -1,0 +1,249 @@
+"""Running a technique's walker over a pass: spans, chunks, threads, buffers, and the exact
+mesh shadow tests the walker defers.
+
+:func:`fused_pass` is what :func:`psurf_core.render.photon_pass` calls for a technique with a
+compiled declaration (``Technique.compiled``). It
+
+1. computes the candidate pixel spans binning would walk (hull polygons clipped and
+   projected, :func:`.spans.hull_spans`, or the screen rectangles), and the ray table;
+2. cuts them into chunks of at most ~``ctx.max_pairs`` candidate pairs (as binning does) and
+   a large chunk into pieces for threads (:mod:`.threads`) whose outputs are put back in span
+   order, so hits, their order and the image do not depend on the thread count;
+3. runs the walker (:mod:`.walk`) with the MIS weight of the technique's set composed in
+   (:mod:`.mis`) where every member has a compiled density;
+4. tests the segments the walker left ``DEFER`` (a triangle mesh's box) with
+   :meth:`Blockers.occluded` and zeroes the hits found blocked.
+
+With ``emit`` it yields every hit (:class:`~psurf_core.techniques.base.Hits` with the
+technique's hit records, per-photon values and, where compiled, MIS weights: what the UI,
+breakdowns and the numpy MIS fallback read); without, it adds the weighted values to the
+per-ray sums directly and materializes no hits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..binning import _chunk_bounds, _spans, screen_rects
+from ..records import dtype_of, flat, widths
+from ..scene import medium_row
+from ..techniques.base import Hits
+from .buffers import HitBuffers
+from .jit import ctrl_c_kept
+from .mis import active_bits, weight_of
+from .rays import ray_table
+from .shadow import BLOCKED, DEFER, blocker_table
+from .spans import hull_spans
+from .threads import PIECES_PER_THREAD, on_threads, thread_count
+from .walk import accumulate, walker
+
+#: Candidate pairs from which a chunk is shared among threads (below, handing the work out
+#: costs more than it saves: ~20k pairs are ~2 ms of work).
+THREADED_MIN_PAIRS = 20_000
+
+_BUFFERS = HitBuffers()
+
+
+@dataclass
+class MisSet:
+    """The MIS set a technique's hits are weighted in.
+
+    Attributes
+    ----------
+    group : tuple of Technique
+        The members that are on.
+    full_group : tuple of Technique
+        The set the kernels are compiled for (``group`` is a subset: ``SPEC~A`` runs
+        ``SPEC``'s kernels with ``A`` switched off).
+    weighting : str or None
+        ``"balance"`` or ``"power"``.
+    """
+
+    group: tuple
+    full_group: tuple
+    weighting: str | None
+
+
+def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: bool = True,
+               out: np.ndarray | None = None):
+    """Find, evaluate and weight every hit of ``prims`` (``tech``'s primitives) with
+    ``rays`` in compiled code, or return None where it does not apply (the technique has no
+    compiled declaration; 64 or fewer pixels see medium, binning's per-pixel branch; the
+    blockers carry no bounds): the caller then runs the stages.
+
+    Parameters
+    ----------
+    mis : MisSet, optional
+        The technique's MIS set; None for a technique alone.
+    emit : bool
+        Yield the hits (see below). Without it, ``out`` (R, 3) receives the weighted
+        per-photon sums per ray.
+
+    Returns
+    -------
+    iterator of (Hits, (H, 3) values, (H,) weights or None), or None
+        ``emit``: the hits of every chunk with their per-photon values before the MIS weight
+        and the weights (None where the set has no compiled weight: the caller computes
+        them). Without ``emit``: an iterator yielding nothing, to be exhausted.
+    """
+    fam = getattr(tech, "compiled", None)
+    if fam is None:
+        return None
+    blk = blocker_table(ctx.blockers)
+    if blk is None:
+        return None
+    cs, rt, rid = ray_table(rays, ctx.scene.camera.n_pixels)
+    if np.count_nonzero(np.diff(cs)) <= 64:
+        return None
+    w, key, bits = None, None, 0
+    if mis is not None:
+        me = next(j for j, m in enumerate(mis.full_group) if m is tech)
+        w, key = weight_of(mis.full_group, me, mis.weighting)
+        bits = active_bits(mis.group, mis.full_group)
+    run = _Run(tech, fam, walker(fam, w, key), prims, paths, rays, ctx, blk, cs, rt, rid, bits,
+               weighted=w is not None, emit=emit or (w is None and mis is not None))
+    return _kept(run.chunks(out))
+
+
+def _kept(it):
+    """``it`` with Ctrl-C kept a KeyboardInterrupt (a SIGINT handled while numba boxes a
+    result surfaces as a SystemError caused by it; ``render --checkpoint`` must see it)."""
+    with ctrl_c_kept():
+        yield from it
+
+
+class _Run:
+    """One technique's walk over one batch of primitives (see :func:`fused_pass`)."""
+
+    def __init__(self, tech, fam, walk, prims, paths, rays, ctx, blk, cs, rt, rid, bits,
+                 weighted, emit):
+        self.tech, self.fam, self.walk = tech, fam, walk
+        self.prims, self.paths, self.rays, self.ctx = prims, paths, rays, ctx
+        self.cs, self.rid, self.emit = cs, rid, emit
+        self.weighted = weighted  # the walker computes the MIS weights
+        c = np.ascontiguousarray
+        lights = _photon_lights(paths, ctx.scene)
+        # The walker's constant arguments after the span range (its signature, in order).
+        self.const = (int(ctx.scene.camera.width), cs, flat(rt), rid, flat(prims.data),
+                      bool(tech.short), medium_row(ctx.scene.medium), flat(blk),
+                      c(prims.photon, np.int64), c(prims.K, np.int64), c(paths.x, float),
+                      c(paths.w, float), c(paths.t, float), lights, np.int64(bits), emit)
+        # DEFER only arises from triangle meshes: without one, no full rows are needed
+        # unless they are asked for.
+        self.full_rows = emit or bool(np.any(blk["kind"] == 3))
+
+    def spans(self):
+        cam, med = self.ctx.scene.camera, self.ctx.scene.medium
+        box = (med.bounds_min, med.bounds_max)
+        prims = self.prims
+        if prims.hull is not None:
+            return hull_spans(cam, prims.lo, prims.hi, prims.hull, box)
+        x0, x1, y0, y1 = screen_rects(cam, prims.lo, prims.hi)
+        return _spans(cam, x0, x1, y0, y1, None, box, self.ctx.max_pairs)
+
+    def chunks(self, out):
+        if len(self.prims) == 0:
+            return
+        spans = self.spans()
+        if spans is None or spans[0].size == 0:
+            return
+        spans = tuple(np.ascontiguousarray(a, np.int64) for a in spans)
+        s_prim, s_row, s_c0, s_c1 = spans
+        width = int(self.ctx.scene.camera.width)
+        base = s_row * width
+        cand = self.cs[base + s_c1] - self.cs[base + s_c0]  # candidate pairs per span
+        # Chunks as binning's (pixels x the most rays in a pixel, within max_pairs).
+        per_pix = max(int(np.diff(self.cs).max()), 1)
+        bounds = _chunk_bounds((s_c1 - s_c0) * per_pix, self.ctx.max_pairs)
+        threads = thread_count()
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            n_cand = int(cand[a:b].sum())
+            th = threads if n_cand >= THREADED_MIN_PAIRS else 1
+            res = self.walk_chunk(spans, cand, a, b, th)
+            if out is not None:
+                accumulate(out, *res["compact"])
+            if res["n_full"]:
+                yield from self.finish(res, out)
+
+    def walk_chunk(self, spans, cand, a, b, threads):
+        """Run the walker over spans ``a .. b - 1`` on ``threads`` threads (pieces of equal
+        candidate pairs, each writing its own region of the outputs)."""
+        if threads <= 1:
+            cut = [a, b]
+        else:
+            cum = np.cumsum(cand[a:b])
+            k = threads * PIECES_PER_THREAD
+            cut = np.unique(np.concatenate(
+                [[a], a + np.searchsorted(cum, cum[-1] * np.arange(1, k) / k), [b]])).tolist()
+        caps = [int(cand[i:j].sum()) * self.fam.n_roots for i, j in zip(cut[:-1], cut[1:],
+                                                                          strict=True)]
+        off = np.concatenate([[0], np.cumsum(caps)]).astype(np.int64)
+        full = _BUFFERS.take("full", self.full_fields(), int(off[-1]) if self.full_rows else 0)
+        compact = _BUFFERS.take("compact", _COMPACT, 0 if self.emit else int(off[-1]))
+        ends = np.zeros((len(caps), 3), np.int64)
+
+        def piece(j):
+            n0 = off[j] if self.full_rows else 0
+            na0 = 0 if self.emit else off[j]
+            lim = off[j + 1] if self.full_rows else 0
+            ends[j] = self.walk(cut[j], cut[j + 1], *spans, *self.const, *full, n0, lim,
+                                *compact, na0)
+
+        on_threads(piece, len(caps), threads)
+        n_full = int((ends[:, 0] - (off[:-1] if self.full_rows else 0)).sum())
+        return dict(full=full, compact=(compact[0], compact[1], off[:-1].copy(), ends[:, 1]),
+                    full_ranges=(off[:-1] if self.full_rows else np.zeros(len(caps), np.int64),
+                                 ends[:, 0]), n_full=n_full,
+                    n_defer=int(ends[:, 2].sum()))
+
+    def full_fields(self):
+        return (*_FULL_HEAD, (np.float64, sum(widths(self.fam.hit))), *_FULL_TAIL)
+
+    def finish(self, res, out):
+        """The full rows of a chunk as Hits (pieces closed up in order), with the deferred
+        segments tested; without ``emit``, their weighted values go to ``out``."""
+        starts, ends = res["full_ranges"]
+        cols = [np.concatenate([f[s:e] for s, e in zip(starts, ends, strict=True)])
+                if len(starts) > 1 else f[starts[0]:ends[0]] for f in res["full"]]
+        ray, prim, s, hit, val, wts, st = cols
+        hits = Hits(ray, prim, s, hit.view(np.float64).view(
+            dtype_of(self.fam.hit)).reshape(-1).view(np.recarray))
+        if res["n_defer"]:
+            self.resolve(hits, st, val)
+        weights = wts if self.weighted else None
+        if self.emit:
+            yield hits, val, weights
+        else:
+            w = wts if self.weighted else 1.0
+            np.add.at(out, ray, val * (w[:, None] if self.weighted else w))
+
+    def resolve(self, hits, st, val):
+        """Exact shadow tests (:meth:`Blockers.occluded`) of the deferred segments; zero the
+        values (rows of ``val``, in place) of the hits found blocked."""
+        rows = np.flatnonzero(np.any(st == DEFER, axis=1))
+        sub, st = hits.select(rows), st[rows]
+        ok = ~np.any(st == BLOCKED, axis=1)
+        x0 = self.rays.o[sub.ray] + sub.s[:, None] * self.rays.d[sub.ray]
+        segs = self.fam.segments(self.prims.data[sub.prim], x0, sub.data)
+        for k, (a, b) in enumerate(segs):
+            idx = np.flatnonzero(ok & (st[:, k] == DEFER))
+            if idx.size:
+                ok[idx] = ~self.ctx.blockers.occluded(a[idx], b[idx])
+        val[rows[~ok]] = 0.0
+
+
+#: Full rows: ray, prim (int64), s; [the hit record]; value (3), weight, statuses (3 int8).
+_FULL_HEAD = ((np.int64, 1), (np.int64, 1), (np.float64, 1))
+_FULL_TAIL = ((np.float64, 3), (np.float64, 1), (np.int8, 3))
+#: Compact rows: ray (int64), weighted value (3).
+_COMPACT = ((np.int64, 1), (np.float64, 3))
+
+
+def _photon_lights(paths, scene):
+    from ..path_record import photon_table
+
+    return flat(photon_table(paths, scene))
+
+

@@ -1,0 +1,131 @@
+"""The walker: one compiled loop over a technique's candidate pixel spans that finds, shades
+and MIS-weights its hits, composed from the family's compiled twins.
+
+For every span ``(prim, row, c0, c1)`` (primitive-major), every pixel of it and every ray of
+that pixel, the walker calls the family's twins in the order its numpy Intersect and
+Evaluate do:
+
+``roots(G, o, psi)``
+    the ray distances ``s`` of the candidate roots (NaN: none), then ``s_min < s < s_max``;
+``accept(G, o, psi, s, short)``
+    whether a root is a hit, and the hit's record (the technique's ``Hits.data`` row);
+``visibility(G, x0, hit, medium, blockers)``
+    the shadow status of the reconstructed path's segments (``kernels.shadow``);
+``contribution(G, psi, s, s_min, hit, short, medium)``
+    ``f / (q |n . psi|)`` without the photon weight ``G.beta``;
+``reconstruct(row, G, hit)`` and every MIS member's ``density(row, short)``
+    the hit's full path and the balance / power weight (:mod:`.mis`), where the technique is
+    in an MIS set.
+
+``G`` is the primitive's geometry record, read once per span. Hits go to one of two outputs:
+*full rows* (ray, primitive, ``s``, the hit record, value, weight, shadow statuses: what
+``Hits`` and the UI need) when ``emit`` is set or a segment needs the exact mesh test
+(``DEFER``), else *compact rows* (ray, weighted value) that the caller adds to the image in
+order. A walker is built per (family, MIS set, member) by :func:`walker` and compiled once per
+clone (the on-disk cache is keyed by every source it inlines, :mod:`.cache`).
+"""
+
+from __future__ import annotations
+
+from ..path_record import at_hit, photon_row
+from ..records import load, store
+from .jit import inline, kernel
+from .rays import RayRow
+from .shadow import BLOCKED, DEFER
+from .vec import madd
+
+_WALKERS: dict = {}
+
+
+@inline
+def _unweighted(row, active):
+    return 1.0
+
+
+def walker(fam, weight=None, key=None):
+    """The compiled walker of family ``fam`` (a technique's ``compiled`` declaration,
+    :class:`~psurf_core.techniques.base.Compiled`) with the MIS weight ``weight`` (an inline
+    function ``(row, active) -> w`` from :func:`.mis.weight_of`; None: no MIS). ``key``
+    names ``weight`` (equal keys: the same function), so each walker is built once per
+    process."""
+    k = (id(fam), key)
+    if k not in _WALKERS:
+        _WALKERS[k] = _build(fam, weight)
+    return _WALKERS[k]
+
+
+def _build(fam, weight):
+    Geometry, n_roots = fam.geometry, fam.n_roots
+    roots, accept, visibility = fam.roots, fam.accept, fam.visibility
+    contribution, reconstruct = fam.contribution, fam.reconstruct
+    mis = weight is not None
+    w_of = weight if mis else _unweighted
+
+    @kernel(nogil=True)
+    def walk(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, geom, short, medium,
+             blockers, photon, kk, px, pw, pt, lights, active, emit,
+             o_ray, o_prim, o_s, o_hit, o_val, o_w, o_st, n, lim,
+             a_ray, a_val, na):  # pragma: no cover - compiled
+        """Hits of spans ``i0 .. i1 - 1`` (module docstring); full rows from ``n`` (up to
+        ``lim``), compact rows from ``na``. Returns the next free full and compact rows and
+        the number of full rows with a ``DEFER`` status."""
+        n_defer = 0
+        for i in range(i0, i1):
+            p = s_prim[i]
+            G = load(geom, p, Geometry)
+            if mis:
+                base = photon_row(px, pw, pt, lights, photon[p], kk[p], medium.sigma_t,
+                                  medium.g)
+            base_px = s_row[i] * width
+            for k in range(cs[base_px + s_c0[i]], cs[base_px + s_c1[i]]):
+                ray = load(rt, k, RayRow)
+                rts = roots(G, ray.o, ray.psi)
+                for j in range(n_roots):
+                    s = rts[j]
+                    if not (s > ray.s_min and s < ray.s_max):  # NaN: no root
+                        continue
+                    ok, hit = accept(G, ray.o, ray.psi, s, short)
+                    if not ok:
+                        continue
+                    x0 = madd(ray.o, s, ray.psi)
+                    st = visibility(G, x0, hit, medium, blockers)
+                    if st[0] == BLOCKED or st[1] == BLOCKED or st[2] == BLOCKED:
+                        scal = 0.0
+                    else:
+                        scal = contribution(G, ray.psi, s, ray.s_min, hit, short, medium)
+                    w = 1.0
+                    if mis:
+                        w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), active)
+                    defer = st[0] == DEFER or st[1] == DEFER or st[2] == DEFER
+                    if emit or defer:
+                        if n >= lim:  # cannot happen: lim is the candidates x roots bound
+                            raise RuntimeError("walker: output capacity exceeded")
+                        o_ray[n] = rid[k]
+                        o_prim[n] = p
+                        o_s[n] = s
+                        store(o_hit, n, hit)
+                        for c in range(3):
+                            o_val[n, c] = G.beta[c] * scal
+                            o_st[n, c] = st[c]
+                        o_w[n] = w
+                        n += 1
+                        n_defer += 1 if defer else 0
+                    elif scal != 0.0:
+                        a_ray[na] = rid[k]
+                        for c in range(3):
+                            a_val[na, c] = (G.beta[c] * scal) * w
+                        na += 1
+        return n, na, n_defer
+
+    return walk
+
+
+@kernel
+def accumulate(out, a_ray, a_val, starts, ends):  # pragma: no cover - compiled
+    """``out[a_ray[h]] += a_val[h]`` for the compact rows ``starts[j] .. ends[j] - 1`` of
+    every piece ``j``, in order (so the sums do not depend on the thread count)."""
+    for j in range(starts.shape[0]):
+        for h in range(starts[j], ends[j]):
+            r = a_ray[h]
+            for c in range(3):
+                out[r, c] += a_val[h, c]
