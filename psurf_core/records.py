@@ -6,7 +6,7 @@ are floats or 3-vectors (:data:`Vec`). In numpy they are structured arrays of
 :func:`dtype_of` the class, viewed as ``numpy.recarray`` so that ``G.x1`` is the (N, 3) column
 (:func:`table`). In compiled code a row is the ``NamedTuple`` itself, with 3-tuples for
 vectors: :func:`load` reads row ``p`` of a table and :func:`store` writes one, from the
-table's (N, F) float view (:func:`flat`). So a kernel reads ``G.beta``, never ``pt[p, 20]``,
+table's (N, F) float view (:func:`flat`). So a kernel reads ``G.beta``, never a numbered column,
 and a schema lives in one place per family.
 
 Every field is float64 (flags are 0.0 / 1.0): the flat view of a table is then a plain
