@@ -5,6 +5,8 @@ Grammar (the CLI contract):
 * ``reference`` - the volumetric path tracer (ground truth);
 * a registered technique name, with ``-short`` where it has a short variant;
 * ``mis:A+B+...`` (balance heuristic) / ``mis-power:A+B+...`` (power heuristic, beta = 2);
+  a member ``A@0.25`` sweeps only that share of each pass's photons, and the heuristics
+  use sample counts (``n_i Q_i``), which keeps the set unbiased;
 * presets (``paper-single``, ``paper-multi``, ``paper-full``) where registered in :data:`PRESETS`;
 * ``SPEC~A~B``: ``SPEC`` (a preset or an MIS set) without its members ``A`` and ``B`` (what the
   window's member toggles give): every other member keeps what ``SPEC`` gave it (a preset's
@@ -72,7 +74,8 @@ def estimator_help() -> str:
         lines.append(f"{name}{suffix}: {e.summary}")
     for name in PRESETS:
         lines.append(f"{name}: preset (see README)")
-    lines.append("mis:A+B+... / mis-power:A+B+...: MIS of photon-surface techniques")
+    lines.append("mis:A+B+... / mis-power:A+B+...: MIS of photon-surface techniques "
+                 "(A@0.25: A sweeps a quarter of the photons)")
     lines.append("SPEC~A~B: SPEC (a preset or an MIS set) without its members A and B")
     return "\n".join(lines)
 
@@ -158,6 +161,8 @@ def _without(spec: str, scene: Scene | None) -> Estimator:
 
 # ------------------------------------------------------------------------- MIS sets and presets
 def _check_member(name: str) -> Technique:
+    """The technique of MIS member ``name`` (``NAME`` or ``NAME@SHARE``, ``0 < SHARE <= 1``)."""
+    name, share = _split_share(name)
     base = name[:-6] if name.endswith("-short") else name
     if base in PRESETS or name in PRESETS:
         raise UnknownTechnique(f"MIS member '{name}' is a preset; list techniques instead")
@@ -166,7 +171,23 @@ def _check_member(name: str) -> Technique:
     if entry is not None and not entry.mis_ok:
         raise UnknownTechnique(f"MIS member '{name}' is a kernel baseline; MIS combines "
                                "unbiased photon-surface techniques only")
+    tech.share = share
     return tech
+
+
+def _split_share(member: str) -> tuple[str, float]:
+    """``NAME@SHARE`` -> ``(NAME, SHARE)``; ``NAME`` -> ``(NAME, 1.0)``."""
+    name, at, text = member.partition("@")
+    if not at:
+        return member, 1.0
+    try:
+        share = float(text)
+    except ValueError:
+        share = float("nan")
+    if not 0.0 < share <= 1.0:
+        raise UnknownTechnique(f"MIS member '{member}': the share after '@' must be a number "
+                               "in (0, 1], the fraction of the photons it sweeps")
+    return name.strip(), share
 
 
 def _applicable(group, scene: Scene | None, spec: str):
@@ -192,7 +213,7 @@ def parse_mis(spec: str, scene: Scene | None = None) -> Estimator:
     names = [n.strip() for n in body.split("+")]
     if not body.strip() or any(not n for n in names):
         raise UnknownTechnique(f"malformed MIS spec '{spec}': expected {head}:A+B+...")
-    if len(set(names)) != len(names):
+    if len({_split_share(n)[0] for n in names}) != len(names):
         raise UnknownTechnique(f"malformed MIS spec '{spec}': a member is listed twice")
     group = [_check_member(n) for n in names]
     group, notes = _applicable(group, scene, spec)

@@ -38,9 +38,16 @@ def member_densities(rec: PathRecord, group, ctx) -> np.ndarray:
     return out
 
 
-def weights_from_densities(q: np.ndarray, weighting: str | None) -> np.ndarray:
-    """(J, H) MIS weights from (J, H) densities; columns with no density get weight 0."""
+def weights_from_densities(q: np.ndarray, weighting: str | None,
+                           shares: np.ndarray | None = None) -> np.ndarray:
+    """(J, H) MIS weights from (J, H) densities; columns with no density get weight 0.
+
+    ``shares`` (J,): the share ``n_j`` of the pass's photons member ``j`` swept (default 1:
+    every member sees every photon). With sample counts the heuristics weigh ``n_j Q_j``
+    (Veach's multi-sample MIS); the weights still sum to one on every path."""
     b = 2.0 if weighting == "power" else 1.0
+    if shares is not None:
+        q = q * np.asarray(shares, dtype=float)[:, None]
     qb = q**b
     den = qb.sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -48,11 +55,15 @@ def weights_from_densities(q: np.ndarray, weighting: str | None) -> np.ndarray:
     return w
 
 
-def mis_weights(tech: Technique, group, weighting, hits, prims, paths, rays,
-                ctx) -> np.ndarray:
-    """(H,) MIS weight of ``tech``'s hits within ``group``: ``tech.reconstruct``, each
-    member's ``density`` (:func:`member_densities`), :func:`weights_from_densities`."""
+def mis_weights(tech: Technique, group, weighting, hits, prims, paths, rays, ctx,
+                shares: np.ndarray | None = None) -> np.ndarray:
+    """(H,) factor of ``tech``'s hits' per-photon values within ``group``: its MIS weight
+    (``tech.reconstruct``, each member's ``density`` (:func:`member_densities`),
+    :func:`weights_from_densities`) divided by its share ``n_me`` of the photons (1 without
+    ``shares``): a member that swept a fraction ``n`` of the photons stands for all of them,
+    so the estimate stays unbiased."""
     rec = tech.reconstruct(hits, prims, paths, rays, ctx)
     q = member_densities(rec, group, ctx)
     me = [i for i, m in enumerate(group) if m is tech][0]
-    return weights_from_densities(q, weighting)[me]
+    w = weights_from_densities(q, weighting, shares)[me]
+    return w if shares is None else w / float(shares[me])

@@ -133,11 +133,19 @@ def photon_pass(
         if record is not None:
             record.paths.append(paths)
         for group, full_group in estimator.sets:
-            mis = MisSet(group, full_group, estimator.weighting) if len(group) > 1 else None
+            # A member with a share sweeps the batch's first photons (alone: all of them).
+            used = {id(t): _photons_used(t, len(paths)) if len(group) > 1 else len(paths)
+                    for t in group}
+            mis = None
+            if len(group) > 1:
+                shares = np.array([used.get(id(m), 0) / len(paths) for m in full_group])
+                mis = MisSet(group, full_group, estimator.weighting, shares)
             for tech in group:
                 ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, pass_index),
                                   pass_index, settings.max_pairs)
-                prims = tech.create(paths, ctx)
+                mine = paths if used[id(tech)] == len(paths) else paths.subset(
+                    np.arange(used[id(tech)]))
+                prims = tech.create(mine, ctx)
                 if record is not None:
                     record.prims[(tech.name, b)] = prims
                 for hits, raw, w in _chunks(tech, prims, paths, rays, ctx, mis, emit, out):
@@ -146,8 +154,8 @@ def photon_pass(
                     val = raw
                     if mis is not None:
                         if w is None:
-                            w = mis_weights(tech, group, estimator.weighting, hits, prims,
-                                            paths, rays, ctx)
+                            w = mis_weights(tech, full_group, estimator.weighting, hits,
+                                            prims, paths, rays, ctx, mis.shares)
                         val = val * w[:, None]
                     if tally is not None:
                         tally(tech, hits, prims, rays, raw, val)
@@ -155,6 +163,14 @@ def photon_pass(
                         record.hits.setdefault((tech.name, b), []).append((hits, val))
                     _accumulate(out, hits.ray, val)
     return out
+
+
+def _photons_used(tech: Technique, n: int) -> int:
+    """Photons of a batch of ``n`` that ``tech`` sweeps: the first ``round(share n)`` (at
+    least one), all of them for a technique alone or with share 1."""
+    if tech.share >= 1.0:
+        return n
+    return int(min(n, max(1, round(tech.share * n))))
 
 
 def _chunks(tech, prims, paths, rays, ctx, mis, emit, out):

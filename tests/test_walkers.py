@@ -27,7 +27,7 @@ from psurf_core.kernels import spans as kspans
 from psurf_core.kernels import walk as kwalk
 from psurf_core.kernels.fused import MisSet, fused_pass
 from psurf_core.mis import mis_weights
-from psurf_core.render import RenderSettings, render_pass, stage_chunks
+from psurf_core.render import RenderSettings, _photons_used, render_pass, stage_chunks
 from psurf_core.scene_io import load_scene
 from psurf_core.techniques import REGISTRY, get_technique
 from psurf_core.techniques.base import PassContext
@@ -148,7 +148,8 @@ def test_accumulating_walker_adds_what_it_would_emit(name):
 
 MIS_SPECS = ["paper-multi", "mis-power:plane-t1t2-short+cone-short+cylinder+plane-t2t3",
              "mis:planes+cone+cylinder-short", "paper-multi~cone",
-             "paper-multi~plane-t1t2~cylinder"]
+             "paper-multi~plane-t1t2~cylinder", "mis:planes+cone-short@0.3+cylinder@0.5",
+             "mis-power:planes@0.6+cone@0.2"]
 
 
 @pytest.mark.parametrize("spec", MIS_SPECS)
@@ -161,11 +162,14 @@ def test_compiled_mis_weights_equal_numpy(spec, name):
     for group, full in est.sets:
         if len(group) < 2:
             continue
+        shares = np.array([_photons_used(m, len(paths)) / len(paths) if m in group else 0.0
+                           for m in full])
         for tech in group:
-            prims = tech.create(paths, ctx)
+            prims = tech.create(paths.subset(np.arange(_photons_used(tech, len(paths)))), ctx)
             for hits, _, w in fused_pass(tech, prims, paths, rays, ctx,
-                                         MisSet(group, full, est.weighting)):
-                ref = mis_weights(tech, group, est.weighting, hits, prims, paths, rays, ctx)
+                                         MisSet(group, full, est.weighting, shares)):
+                ref = mis_weights(tech, full, est.weighting, hits, prims, paths, rays, ctx,
+                                  shares)
                 np.testing.assert_allclose(w, ref, rtol=1e-12, atol=1e-14,
                                            err_msg=f"{spec} {tech.name}")
                 n += len(hits)

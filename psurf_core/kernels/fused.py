@@ -32,7 +32,7 @@ from ..scene import medium_row
 from ..techniques.base import Hits
 from .buffers import HitBuffers
 from .jit import ctrl_c_kept
-from .mis import active_bits, weight_of
+from .mis import weight_of
 from .rays import ray_table
 from .shadow import BLOCKED, DEFER, blocker_table
 from .spans import hull_spans
@@ -59,15 +59,25 @@ class MisSet:
         ``SPEC``'s kernels with ``A`` switched off).
     weighting : str or None
         ``"balance"`` or ``"power"``.
+    shares : (J,) float, optional
+        Per member of ``full_group``: the share of the batch's photons it swept (0: off);
+        default 1 for the members of ``group``.
     """
 
     group: tuple
     full_group: tuple
     weighting: str | None
+    shares: np.ndarray | None = None
+
+    def share_array(self) -> np.ndarray:
+        if self.shares is not None:
+            return np.ascontiguousarray(self.shares, dtype=float)
+        on = {id(m) for m in self.group}
+        return np.array([1.0 if id(m) in on else 0.0 for m in self.full_group])
 
 
 def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: bool = True,
-               out: np.ndarray | None = None):
+               out: np.ndarray | None = None, stats: dict | None = None):
     """Find, evaluate and weight every hit of ``prims`` (``tech``'s primitives) with
     ``rays`` in compiled code, or return None where it does not apply (the technique has no
     compiled declaration; 64 or fewer pixels see medium, binning's per-pixel branch; the
@@ -80,6 +90,9 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
     emit : bool
         Yield the hits (see below). Without it, ``out`` (R, 3) receives the weighted
         per-photon sums per ray.
+    stats : dict, optional
+        Receives ``candidates`` (ray-primitive pairs walked) and ``hits`` (hits evaluated,
+        blocked ones included), added to what it holds (``benchmarks/``).
 
     Returns
     -------
@@ -97,13 +110,14 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
     cs, rt, rid = ray_table(rays, ctx.scene.camera.n_pixels)
     if np.count_nonzero(np.diff(cs)) <= 64:
         return None
-    w, key, bits = None, None, 0
+    w, key, shares = None, None, np.ones(1)
     if mis is not None:
         me = next(j for j, m in enumerate(mis.full_group) if m is tech)
         w, key = weight_of(mis.full_group, me, mis.weighting)
-        bits = active_bits(mis.group, mis.full_group)
-    run = _Run(tech, fam, walker(fam, w, key), prims, paths, rays, ctx, blk, cs, rt, rid, bits,
-               weighted=w is not None, emit=emit or (w is None and mis is not None))
+        shares = mis.share_array()
+    run = _Run(tech, fam, walker(fam, w, key), prims, paths, rays, ctx, blk, cs, rt, rid,
+               shares, weighted=w is not None, emit=emit or (w is None and mis is not None))
+    run.stats = stats
     return _kept(run.chunks(out))
 
 
@@ -117,7 +131,7 @@ def _kept(it):
 class _Run:
     """One technique's walk over one batch of primitives (see :func:`fused_pass`)."""
 
-    def __init__(self, tech, fam, walk, prims, paths, rays, ctx, blk, cs, rt, rid, bits,
+    def __init__(self, tech, fam, walk, prims, paths, rays, ctx, blk, cs, rt, rid, shares,
                  weighted, emit):
         self.tech, self.fam, self.walk = tech, fam, walk
         self.prims, self.paths, self.rays, self.ctx = prims, paths, rays, ctx
@@ -129,7 +143,7 @@ class _Run:
         self.const = (int(ctx.scene.camera.width), cs, flat(rt), rid, flat(prims.data),
                       bool(tech.short), medium_row(ctx.scene.medium), flat(blk),
                       c(prims.photon, np.int64), c(prims.K, np.int64), c(paths.x, float),
-                      c(paths.w, float), c(paths.t, float), lights, np.int64(bits), emit)
+                      c(paths.w, float), c(paths.t, float), lights, shares, emit)
         # DEFER only arises from triangle meshes: without one, no full rows are needed
         # unless they are asked for.
         self.full_rows = emit or bool(np.any(blk["kind"] == 3))
@@ -140,6 +154,8 @@ class _Run:
         prims = self.prims
         if prims.hull is not None:
             return hull_spans(cam, prims.lo, prims.hi, prims.hull, box)
+        if prims.cloud is not None:
+            return hull_spans(cam, prims.lo, prims.hi, prims.cloud, box, cloud=True)
         x0, x1, y0, y1 = screen_rects(cam, prims.lo, prims.hi)
         return _spans(cam, x0, x1, y0, y1, None, box, self.ctx.max_pairs)
 
@@ -162,6 +178,10 @@ class _Run:
             n_cand = int(cand[a:b].sum())
             th = threads if n_cand >= THREADED_MIN_PAIRS else 1
             res = self.walk_chunk(spans, cand, a, b, th)
+            if self.stats is not None:
+                st = self.stats
+                st["candidates"] = st.get("candidates", 0) + n_cand
+                st["hits"] = st.get("hits", 0) + res["n_hits"]
             if out is not None:
                 accumulate(out, *res["compact"])
             if res["n_full"]:
@@ -182,7 +202,7 @@ class _Run:
         off = np.concatenate([[0], np.cumsum(caps)]).astype(np.int64)
         full = _BUFFERS.take("full", self.full_fields(), int(off[-1]) if self.full_rows else 0)
         compact = _BUFFERS.take("compact", _COMPACT, 0 if self.emit else int(off[-1]))
-        ends = np.zeros((len(caps), 3), np.int64)
+        ends = np.zeros((len(caps), 4), np.int64)
 
         def piece(j):
             n0 = off[j] if self.full_rows else 0
@@ -196,7 +216,7 @@ class _Run:
         return dict(full=full, compact=(compact[0], compact[1], off[:-1].copy(), ends[:, 1]),
                     full_ranges=(off[:-1] if self.full_rows else np.zeros(len(caps), np.int64),
                                  ends[:, 0]), n_full=n_full,
-                    n_defer=int(ends[:, 2].sum()))
+                    n_defer=int(ends[:, 2].sum()), n_hits=int(ends[:, 3].sum()))
 
     def full_fields(self):
         return (*_FULL_HEAD, (np.float64, sum(widths(self.fam.hit))), *_FULL_TAIL)

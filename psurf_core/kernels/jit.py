@@ -40,9 +40,11 @@ def inline(fn):
     return njit(cache=False, inline="always", **OPTIONS)(fn)
 
 
-def twin(numpy_function):
+def twin(numpy_function, inline: bool = False):
     """``@twin(f)``: the decorated scalar function is what compiled code runs when it calls
-    ``f``. It must take the same arguments as ``f`` (numba checks the names)."""
+    ``f``. It must take the same arguments as ``f`` (numba checks the names). ``inline``:
+    inline it in numba's IR at every call site (for the few tiny ones on every pair: each
+    copy costs compile time)."""
 
     def deco(impl):
         def typer(*args):
@@ -55,7 +57,8 @@ def twin(numpy_function):
             return_annotation=empty)
         # Not inlined in numba's IR (a typed copy per call site: 40% more compile time);
         # LLVM inlines them into the walker all the same (measured: the same run time).
-        overload(numpy_function, jit_options=OPTIONS)(typer)
+        overload(numpy_function, inline="always" if inline else "never",
+                 jit_options=OPTIONS)(typer)
         return impl
 
     return deco

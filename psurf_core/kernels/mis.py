@@ -1,18 +1,21 @@
 """The MIS weight in compiled code, composed from the members' own ``density`` twins.
 
-:func:`weight_of` turns an MIS set into one inline function ``w(row, active)``: the
-balance (``b = 1``) or power (``b = 2``) heuristic ``Q_me^b / sum_j Q_j^b`` over the members
-that can produce the hit's path (its scatter count ``K`` and light kind, as
-``Technique.can_produce``), each ``Q_j`` the member family's compiled ``density`` on the
-reconstructed path ``row`` (:class:`~psurf_core.path_record.PathRow`). The members are
+:func:`weight_of` turns an MIS set into one inline function ``w(row, shares)``: the
+balance (``b = 1``) or power (``b = 2``) heuristic with sample counts,
+``(n_me Q_me)^b / sum_j (n_j Q_j)^b / n_me``, over the members that can produce the hit's
+path (its scatter count ``K`` and light kind, as ``Technique.can_produce``), each ``Q_j`` the
+member family's compiled ``density`` on the reconstructed path ``row``
+(:class:`~psurf_core.path_record.PathRow`) and ``n_j`` the share of the pass's photons member
+``j`` swept (``shares``; see :func:`psurf_core.mis.weights_from_densities`). The members are
 unrolled at compile time (a chain of closures, one per member), so the compiler inlines
 every density into the walker and computes a factor the members share (a pdf, a cross
 product, an exponential) once.
 
-``active`` (a bit per member) switches members off at run time: an estimator ``SPEC~A``
-(the window's member toggles) runs the kernels compiled for ``SPEC`` with ``A``'s bit
-cleared, so a toggle compiles nothing. Members whose family has no compiled density make
-:func:`weight_of` return None (the numpy weights of :mod:`psurf_core.mis` run instead).
+``shares`` is a run-time array: a share of 0 switches a member off, so an estimator
+``SPEC~A`` (the window's member toggles) runs the kernels compiled for ``SPEC``, and
+allocations (``cone@0.25``) compile nothing either. Members whose family has no compiled
+density make :func:`weight_of` return None (the numpy weights of :mod:`psurf_core.mis` run
+instead).
 """
 
 from __future__ import annotations
@@ -31,19 +34,21 @@ def member_key(tech) -> tuple:
             mask)
 
 
-def _member(density, bit, short, min_k, max_k, mask, power):
-    """``Q^b`` of one member on ``row`` (0 where it is off or cannot produce the path;
-    ``nan_to_num(|Q|)`` as :func:`psurf_core.mis.member_densities`)."""
+def _member(density, j, short, min_k, max_k, mask, power):
+    """``(n_j Q_j)^b`` of member ``j`` on ``row`` (0 where it is off or cannot produce the
+    path; ``nan_to_num(|Q|)`` as :func:`psurf_core.mis.member_densities`)."""
 
     @inline
-    def q(row, active):
-        if (active >> bit) & 1 == 0:
+    def q(row, shares):
+        n = shares[j]
+        if n == 0.0:
             return 0.0
         if row.K < min_k or (max_k >= 0 and row.K > max_k) or (mask >> row.kind) & 1 == 0:
             return 0.0
         v = abs(density(row, short))
         if not v < np.inf:  # NaN and inf count as 0
             v = 0.0
+        v = n * v
         return v * v if power else v
 
     return q
@@ -55,16 +60,17 @@ def _sum(terms):
     head, rest = terms[0], _sum(terms[1:])
 
     @inline
-    def total(row, active):
-        return head(row, active) + rest(row, active)
+    def total(row, shares):
+        return head(row, shares) + rest(row, shares)
 
     return total
 
 
 def weight_of(group, me: int, weighting: str | None):
-    """``(w, key)``: the inline weight ``w(row, active)`` of member ``me`` of ``group`` (a
+    """``(w, key)``: the inline weight ``w(row, shares)`` of member ``me`` of ``group`` (a
     tuple of techniques) and the key naming it, or ``(None, None)`` when a member has no
-    compiled density."""
+    compiled density. ``w`` is the factor of the hit's per-photon value (already divided by
+    ``n_me``)."""
     fams = [getattr(m, "compiled", None) for m in group]
     if any(f is None or f.density is None for f in fams):
         return None, None
@@ -75,14 +81,8 @@ def weight_of(group, me: int, weighting: str | None):
     total, mine = _sum(terms), terms[me]
 
     @inline
-    def w(row, active):
-        den = total(row, active)
-        return mine(row, active) / den if den > 0.0 else 0.0
+    def w(row, shares):
+        den = total(row, shares)
+        return mine(row, shares) / den / shares[me] if den > 0.0 else 0.0
 
     return w, (keys, me, power)
-
-
-def active_bits(group, full_group) -> int:
-    """The ``active`` mask of ``group`` (the members left) within ``full_group``."""
-    ids = {id(m) for m in group}
-    return sum(1 << j for j, m in enumerate(full_group) if id(m) in ids)

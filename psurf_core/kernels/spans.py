@@ -186,6 +186,75 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
     return px, py, count, r0, nr
 
 
+@inline
+def _cross2(ox, oy, ax, ay, bx, by):
+    return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox)
+
+
+@kernel(nogil=True)
+def _cloud_project(cloud, live, near, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
+    """:func:`_clip_project` for point clouds: per primitive, the convex hull (Andrew's
+    monotone chain, counter-clockwise) of its points projected to pixels; its projection
+    contains the projection of any surface inside the points' 3D convex hull. A cloud with
+    a point that is not finite or not in front of the near plane (``near``: ``(n, offset)``)
+    gets its rectangle's rows and ``count = -1``."""
+    m, v = cloud.shape[0], cloud.shape[1]
+    px = np.zeros((m, 2 * v))
+    py = np.zeros((m, 2 * v))
+    count = np.zeros(m, np.int64)
+    r0 = np.zeros(m, np.int64)
+    nr = np.zeros(m, np.int64)
+    qx = np.empty(v)
+    qy = np.empty(v)
+    for i in range(m):
+        if not live[i]:
+            continue
+        ok = True
+        for j in range(v):
+            d = (cloud[i, j, 0] * near[0] + cloud[i, j, 1] * near[1] + cloud[i, j, 2] * near[2]
+                 - near[3])
+            if not (d >= 0.0 and np.isfinite(cloud[i, j, 0]) and np.isfinite(cloud[i, j, 1])
+                    and np.isfinite(cloud[i, j, 2])):
+                ok = False
+        if not ok:
+            count[i] = -1
+            r0[i] = y0[i]
+            nr[i] = y1[i] - y0[i]
+            continue
+        for j in range(v):  # project, then insertion-sort by (x, y): v is small
+            x, y, _ = _project(cloud[i, j, 0], cloud[i, j, 1], cloud[i, j, 2], cam)
+            k = j
+            while k > 0 and (qx[k - 1] > x or (qx[k - 1] == x and qy[k - 1] > y)):
+                qx[k], qy[k] = qx[k - 1], qy[k - 1]
+                k -= 1
+            qx[k], qy[k] = x, y
+        n = 0
+        for j in range(v):  # lower hull
+            while n >= 2 and _cross2(px[i, n - 2], py[i, n - 2], px[i, n - 1], py[i, n - 1],
+                                     qx[j], qy[j]) <= 0.0:
+                n -= 1
+            px[i, n], py[i, n] = qx[j], qy[j]
+            n += 1
+        lower = n + 1
+        for j in range(v - 2, -1, -1):  # upper hull
+            while n >= lower and _cross2(px[i, n - 2], py[i, n - 2], px[i, n - 1],
+                                         py[i, n - 1], qx[j], qy[j]) <= 0.0:
+                n -= 1
+            px[i, n], py[i, n] = qx[j], qy[j]
+            n += 1
+        n = max(n - 1, 1)  # the last point repeats the first
+        count[i] = n
+        ymin, ymax = np.inf, -np.inf
+        for j in range(n):
+            ymin = min(ymin, py[i, j])
+            ymax = max(ymax, py[i, j])
+        lo = max(np.floor(ymin - _SPAN_MARGIN), y0[i])
+        hi = min(np.floor(ymax + _SPAN_MARGIN) + 1, y1[i])
+        r0[i] = int(lo)
+        nr[i] = max(int(hi) - int(lo), 0)
+    return px, py, count, r0, nr
+
+
 @kernel(nogil=True)
 def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - compiled
     """Per-row column spans ``[c0, c1)`` of the projected polygons of :func:`_clip_project`
@@ -275,10 +344,14 @@ _WARM: list = []
 _THREADED_MIN_PRIMS = 2000
 
 
-def hull_spans(cam, lo, hi, hull, box):
+def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
     """Candidate pixel spans ``(prim, row, c0, c1)`` of every primitive: what
     ``binning.screen_rects`` + ``binning._spans`` give (hull polygons clipped to the box and
     the near plane, within the screen rectangles of ``[lo, hi]``), in compiled loops.
+
+    ``cloud``: ``hull`` holds point clouds whose convex hull contains each primitive (a
+    cone: its apex and a ring circumscribing its base circle), not planar polygons; their
+    projections' convex hulls give the spans (:func:`_cloud_project`).
 
     Many primitives are cut into consecutive pieces that numba's threads clip and project,
     then write the spans of, in primitive order (each primitive's spans depend on it alone):
@@ -292,6 +365,13 @@ def hull_spans(cam, lo, hi, hull, box):
     camv = camera_row(cam)
     c = np.ascontiguousarray
     lo, hi, hull = c(lo, float), c(hi, float), c(hull, float)
+    if cloud:
+        near = c(planes[-1])
+
+        def outline(h, live, _, camv, x0, x1, y0, y1):
+            return _cloud_project(h, live, near, camv, x0, x1, y0, y1)
+    else:
+        outline = _clip_project
     # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored
     rects = None if np.isfinite(lo).all() and np.isfinite(hi).all() else screen_rects(cam, lo,
                                                                                         hi)
@@ -300,7 +380,7 @@ def hull_spans(cam, lo, hi, hull, box):
     if threads <= 1:
         x0, x1, y0, y1 = rects if rects is not None else _screen_rects(lo, hi, camv)
         live = (x1 > x0) & (y1 > y0)
-        px, py, count, r0, nr = _clip_project(hull, live, planes, camv, x0, x1, y0, y1)
+        px, py, count, r0, nr = outline(hull, live, planes, camv, x0, x1, y0, y1)
         n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
         if not _WARM:  # load the threaded path's kernel now (render.warm_up's pass)
             _row_spans_into(px[:0], py[:0], count[:0], r0[:0], nr[:0], x0[:0], x1[:0], 0,
@@ -315,7 +395,7 @@ def hull_spans(cam, lo, hi, hull, box):
         x0, x1, y0, y1 = ((c(r[a:b]) for r in rects) if rects is not None
                           else _screen_rects(lo[a:b], hi[a:b], camv))
         live = (x1 > x0) & (y1 > y0)
-        parts[j] = (x0, x1, *_clip_project(hull[a:b], live, planes, camv, x0, x1, y0, y1))
+        parts[j] = (x0, x1, *outline(hull[a:b], live, planes, camv, x0, x1, y0, y1))
 
     on_threads(project, len(parts), threads)
     # Each piece writes from the first row it could fill (its rows before it), then the

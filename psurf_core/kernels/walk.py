@@ -38,14 +38,14 @@ _WALKERS: dict = {}
 
 
 @inline
-def _unweighted(row, active):
+def _unweighted(row, shares):
     return 1.0
 
 
 def walker(fam, weight=None, key=None):
     """The compiled walker of family ``fam`` (a technique's ``compiled`` declaration,
     :class:`~psurf_core.techniques.base.Compiled`) with the MIS weight ``weight`` (an inline
-    function ``(row, active) -> w`` from :func:`.mis.weight_of`; None: no MIS). ``key``
+    function ``(row, shares) -> w`` from :func:`.mis.weight_of`; None: no MIS). ``key``
     names ``weight`` (equal keys: the same function), so each walker is built once per
     process."""
     k = (id(fam), key)
@@ -63,13 +63,15 @@ def _build(fam, weight):
 
     @kernel(nogil=True)
     def walk(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, geom, short, medium,
-             blockers, photon, kk, px, pw, pt, lights, active, emit,
+             blockers, photon, kk, px, pw, pt, lights, shares, emit,
              o_ray, o_prim, o_s, o_hit, o_val, o_w, o_st, n, lim,
              a_ray, a_val, na):  # pragma: no cover - compiled
         """Hits of spans ``i0 .. i1 - 1`` (module docstring); full rows from ``n`` (up to
-        ``lim``), compact rows from ``na``. Returns the next free full and compact rows and
-        the number of full rows with a ``DEFER`` status."""
+        ``lim``), compact rows from ``na``. Returns the next free full and compact rows, the
+        number of full rows with a ``DEFER`` status and the number of hits (occluded ones
+        included: every hit is shaded)."""
         n_defer = 0
+        n_hits = 0
         for i in range(i0, i1):
             p = s_prim[i]
             G = load(geom, p, Geometry)
@@ -87,6 +89,7 @@ def _build(fam, weight):
                     ok, hit = accept(G, ray.o, ray.psi, s, short)
                     if not ok:
                         continue
+                    n_hits += 1
                     x0 = madd(ray.o, s, ray.psi)
                     st = visibility(G, x0, hit, medium, blockers)
                     if st[0] == BLOCKED or st[1] == BLOCKED or st[2] == BLOCKED:
@@ -95,7 +98,7 @@ def _build(fam, weight):
                         scal = contribution(G, ray.psi, s, ray.s_min, hit, short, medium)
                     w = 1.0
                     if mis:
-                        w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), active)
+                        w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), shares)
                     defer = st[0] == DEFER or st[1] == DEFER or st[2] == DEFER
                     if emit or defer:
                         if n >= lim:  # cannot happen: lim is the candidates x roots bound
@@ -115,7 +118,7 @@ def _build(fam, weight):
                         for c in range(3):
                             a_val[na, c] = (G.beta[c] * scal) * w
                         na += 1
-        return n, na, n_defer
+        return n, na, n_defer, n_hits
 
     return walk
 

@@ -101,6 +101,11 @@ class Primitives:
         Planar families: a convex polygon containing the primitive's part inside the box
         (binning tests only the pixels it covers); a row with a non-finite vertex, or
         ``None``, falls back to the screen rectangle of ``[lo, hi]``.
+    cloud : (M, V, 3) float or None
+        Curved families: points whose convex hull contains the primitive's part inside the
+        box; the compiled walkers visit only the pixels its projection covers (within the
+        rectangle). A row with a point that is not finite or behind the camera falls back to
+        the rectangle. (The numpy stage path uses the rectangles.)
     """
 
     technique: str
@@ -110,6 +115,7 @@ class Primitives:
     hi: np.ndarray
     data: dict = field(default_factory=dict)
     hull: np.ndarray | None = None
+    cloud: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.photon.shape[0]
@@ -167,6 +173,15 @@ class Technique:
     max_k: int | None = None
     lights = ("point", "area", "mesh")
     short = False
+    #: Share of each pass's photons the technique sweeps inside an MIS set (``NAME@0.25``):
+    #: the first ``round(share x batch)`` photons of every batch (photons are iid, so any
+    #: subset of fixed size is an unbiased sample); the MIS weights use sample counts.
+    share = 1.0
+
+    @property
+    def label(self) -> str:
+        """The name with its share where it is not 1 (``cone@0.25``)."""
+        return self.name if self.share == 1.0 else f"{self.name}@{self.share:g}"
 
     # ---------------------------------------------------------------- which paths
     def k_range(self, scene: Scene, depth: int) -> range:
@@ -276,7 +291,7 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", a, b)
 
 
-@twin(dot)
+@twin(dot, inline=True)
 def _dot(a, b):
     """``dot`` of two 3-tuples, summed as numpy's ``einsum`` sums a C-contiguous row
     (``(a0 b0 + a2 b2) + a1 b1``: its two-way unrolled loop; measured), so that twins agree
@@ -289,7 +304,7 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.cross(a, b)
 
 
-@twin(cross)
+@twin(cross, inline=True)
 def _cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 

@@ -32,12 +32,14 @@ from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_cl
 from .surface_common import (
     NDP_MIN,
     beta1,
+    box_reach,
     camera_term,
     cone_bounds,
     gather,
     q_to_w2,
     quadratic_roots,
     radial,
+    ring,
     select_photons,
     transmittance_of,
     unit,
@@ -125,7 +127,7 @@ def visibility(G, x0, hit, medium, blockers):
     return segments_clear(blockers, (G.x1, x0))
 
 
-@twin(visibility)
+@twin(visibility, inline=True)
 def _visibility(G, x0, hit, medium, blockers):
     return status(G.x1, x0, blockers), CLEAR, CLEAR
 
@@ -190,9 +192,13 @@ class PhotonCone(Technique):
         c1, s1, _ = radial(g["w1"], g["w2"])
         lo, hi = cone_bounds(g["x1"], g["w2"], c1, s1, g["T1"] if self.short else None)
         lo, hi = clip_bounds(ctx.scene, lo, hi)
+        # Footprint: the apex and a ring circumscribing the base circle at slant length L.
+        L = g["T1"] if self.short else box_reach(ctx.scene, g["x1"])
+        base = ring(g["x1"] + (L * c1)[:, None] * g["w2"], g["w2"], L * s1)
         return Primitives(self.name, photon, K, lo, hi,
                           table(ConeGeometry, x1=g["x1"], w2=g["w2"], c1=c1, T1=g["T1"],
-                                beta=beta1(paths, photon, K)))
+                                beta=beta1(paths, photon, K)),
+                          cloud=np.concatenate([g["x1"][:, None], base], axis=1))
 
     def scaled_normal(self, rec):
         """(H, 3) scaled normal on records ``rec`` (the inspector's)."""

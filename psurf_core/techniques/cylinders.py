@@ -31,6 +31,7 @@ from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_cl
 from .surface_common import (
     NDP_MIN,
     beta1,
+    box_reach,
     camera_term,
     circle_extent,
     gather,
@@ -39,6 +40,7 @@ from .surface_common import (
     quadratic_roots,
     radial,
     rebuilt_clear,
+    ring,
     select_photons,
     sweep_bounds,
     transmittance_of,
@@ -143,7 +145,7 @@ def visibility(G, x0, hit, medium, blockers):
                           ok=rebuilt_clear(G.x2, x1, known, medium, blockers))
 
 
-@twin(visibility)
+@twin(visibility, inline=True)
 def _visibility(G, x0, hit, medium, blockers):
     x1 = madd(G.x2, hit.t2, G.w2)
     st0 = rebuilt_clear(G.x2, x1, G.own != 0.0 and hit.t2 < G.T2, medium, blockers)
@@ -213,7 +215,12 @@ class PhotonCylinder(Technique):
         ext = circle_extent(w2, T1 * s1)
         lo, hi = sweep_bounds(centre - ext, centre + ext, w2, g["T2"] if self.short else None)
         lo, hi = clip_bounds(ctx.scene, lo, hi)
-        return Primitives(self.name, photon, K, lo, hi, table(
+        # Footprint: rings circumscribing the circles at t2 = 0 and at its far end.
+        h0 = T1 * c1
+        h1 = h0 + g["T2"] if self.short else np.maximum(box_reach(ctx.scene, x2, w2), h0)
+        cloud = np.concatenate([ring(x2 + h0[:, None] * w2, w2, T1 * s1),
+                                ring(x2 + h1[:, None] * w2, w2, T1 * s1)], axis=1)
+        return Primitives(self.name, photon, K, lo, hi, cloud=cloud, data=table(
             CylinderGeometry, x2=x2, w2=w2, c1=c1, s1=s1, T1=T1, T2=g["T2"],
             own=own_segment(paths, photon, K - 1, x2, ctx.scene), beta=beta1(paths, photon, K)))
 

@@ -149,7 +149,7 @@ def visibility(G, x0, hit, medium, blockers):
     return segments_clear(blockers, (x2, x1), (x1, x0), ok=ok)
 
 
-@twin(visibility)
+@twin(visibility, inline=True)
 def _visibility(G, x0, hit, medium, blockers):
     x2, x1 = vertices(G, hit)
     st0 = rebuilt_clear(G.x3, x2, G.own != 0.0 and hit.t3 < G.Tu, medium, blockers)

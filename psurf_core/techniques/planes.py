@@ -160,7 +160,7 @@ def visibility(G, x0, hit, medium, blockers):
                           ok=rebuilt_clear(G.x2, x1, known, medium, blockers))
 
 
-@twin(visibility)
+@twin(visibility, inline=True)
 def _visibility(G, x0, hit, medium, blockers):
     x1 = madd(G.x2, hit.t2, G.w2)
     st0 = rebuilt_clear(G.x2, x1, G.own != 0.0 and hit.t2 < G.T2, medium, blockers)

@@ -147,7 +147,7 @@ def rebuilt_clear(a, b, known, medium, blockers):
     return ok
 
 
-@twin(rebuilt_clear)
+@twin(rebuilt_clear, inline=True)
 def _rebuilt_clear(a, b, known, medium, blockers):
     """The segment's shadow status (``kernels.shadow``)."""
     if known:
@@ -172,6 +172,46 @@ def cone_bounds(apex, axis, c, s, length):
         return (np.where(dmin < 0.0, -np.inf, apex), np.where(dmax > 0.0, np.inf, apex))
     return (apex + length[:, None] * np.minimum(dmin, 0.0),
             apex + length[:, None] * np.maximum(dmax, 0.0))
+
+
+#: Vertices of the polygons circumscribing the circles of footprint clouds (:func:`ring`).
+RING_VERTICES = 8
+
+
+def frame(axis: np.ndarray):
+    """(M, 3) unit vectors ``e1, e2`` with ``e1, e2, axis`` orthonormal (Duff et al. 17)."""
+    z = axis
+    sign = np.where(z[:, 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + z[:, 2])
+    b = z[:, 0] * z[:, 1] * a
+    e1 = np.stack([1.0 + sign * z[:, 0] ** 2 * a, sign * b, -sign * z[:, 0]], axis=1)
+    e2 = np.stack([b, sign + z[:, 1] ** 2 * a, -z[:, 1]], axis=1)
+    return e1, e2
+
+
+def ring(centre: np.ndarray, axis: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """(M, V, 3) vertices of the regular polygons circumscribing the circles of ``radius``
+    about ``centre`` in the planes normal to unit ``axis`` (their convex hull contains the
+    circles: vertices at ``radius / cos(pi / V)``)."""
+    e1, e2 = frame(axis)
+    ang = 2.0 * np.pi * np.arange(RING_VERTICES) / RING_VERTICES
+    r = (np.abs(radius) / np.cos(np.pi / RING_VERTICES))[:, None, None]
+    return centre[:, None] + r * (np.cos(ang)[None, :, None] * e1[:, None]
+                                  + np.sin(ang)[None, :, None] * e2[:, None])
+
+
+def box_reach(scene, origin: np.ndarray, axis: np.ndarray | None = None) -> np.ndarray:
+    """(M,) how far the medium box reaches from ``origin``: the largest distance to a box
+    corner, or (``axis`` given) the largest extent of the box along ``axis`` from ``origin``
+    (what a long surface needs to be drawn to: the box clips the rest)."""
+    med = scene.medium
+    corners = np.array([[x, y, z] for x in (med.bounds_min[0], med.bounds_max[0])
+                        for y in (med.bounds_min[1], med.bounds_max[1])
+                        for z in (med.bounds_min[2], med.bounds_max[2])])
+    d = corners[None] - origin[:, None]
+    if axis is None:
+        return np.sqrt((d**2).sum(axis=2)).max(axis=1)
+    return np.einsum("mkc,mc->mk", d, axis).max(axis=1)
 
 
 def sweep_bounds(lo, hi, d, length):

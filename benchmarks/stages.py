@@ -1,0 +1,133 @@
+"""What one pass costs, stage by stage and technique by technique (used by ``run.py``).
+
+Every rate names its numerator and its clock:
+
+* ``trace``: photon vertices traced per second (wall);
+* per technique: primitives created, candidate ray-primitive pairs walked and hits
+  evaluated (shaded, shadow tests and MIS weight included) by its compiled walker
+  (:func:`psurf_core.kernels.fused.fused_pass`, the path ``render_pass`` takes), with the wall
+  and the CPU time (``time.process_time``: every thread of this process) of the walk; a
+  technique without a compiled path runs the numpy stages (binning, intersect, evaluate,
+  numpy MIS weights), timed the same way;
+* ``hits_per_second``: evaluated hits over the wall time of finding and evaluating them
+  (every walk of the pass), ``cpu_ns_per_hit``: the CPU time of the same per hit.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from psurf_core.binning import candidate_pairs
+from psurf_core.camera import camera_rays
+from psurf_core.estimators import parse_estimator
+from psurf_core.geometry import blockers_of
+from psurf_core.kernels.fused import MisSet, fused_pass
+from psurf_core.mis import mis_weights
+from psurf_core.render import PHOTON_BATCH, RenderSettings, kernel_radius, pass_generators
+from psurf_core.techniques.base import PassContext
+from psurf_core.trace import trace
+
+
+class Clock:
+    """Wall and CPU seconds of a block, added to ``acc[key]`` and ``acc[key + '_cpu']``."""
+
+    def __init__(self, acc: dict, key: str):
+        self.acc, self.key = acc, key
+
+    def __enter__(self):
+        self.t = (time.perf_counter(), time.process_time())
+
+    def __exit__(self, *exc):
+        w, c = self.t
+        self.acc[self.key] = self.acc.get(self.key, 0.0) + time.perf_counter() - w
+        k = self.key + "_cpu"
+        self.acc[k] = self.acc.get(k, 0.0) + time.process_time() - c
+
+
+def _numpy_stages(tech, group, est, prims, paths, rays, ctx, mis, pt):
+    """The numpy stage path of a technique without a compiled walker, timed."""
+    med = ctx.scene.medium
+    it = candidate_pairs(ctx.scene.camera, rays, prims.lo, prims.hi, ctx.max_pairs, prims.hull,
+                         (med.bounds_min, med.bounds_max))
+    while True:
+        with Clock(pt, "walk"):
+            pair = next(it, None)
+            if pair is None:
+                break
+            ray, prim = pair
+            hits = tech.intersect(prims, rays, ray, prim, ctx)
+            if len(hits):
+                tech.evaluate(hits, prims, paths, rays, ctx)
+                if mis is not None:
+                    mis_weights(tech, mis.full_group, est.weighting, hits, prims, paths, rays,
+                                ctx, mis.shares)
+        pt["candidates"] += len(ray)
+        pt["hits"] += len(hits)
+
+
+def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
+    """Pass 0 of ``spec``, stage by stage and technique by technique (the loop of
+    ``render.photon_pass``, with clocks)."""
+    est = parse_estimator(spec, scene)
+    settings = RenderSettings(photons=photons)
+    blockers = blockers_of(scene)
+    ray_rng, photon_ss = pass_generators(seed, 0)
+    rays = camera_rays(scene, settings.spp, ray_rng, blockers=blockers)
+    t: dict = {}
+    vertices = 0
+    per_tech: dict[str, dict] = {}
+    n_batches = -(-photons // PHOTON_BATCH)
+    for b, ss in enumerate(photon_ss.spawn(n_batches)):
+        nb = min(PHOTON_BATCH, photons - b * PHOTON_BATCH)
+        with Clock(t, "trace"):
+            paths = trace(scene, nb, np.random.default_rng(ss), blockers=blockers)
+        vertices += int(paths.alive.sum())
+        for group, full in est.sets:
+            mis = MisSet(group, full, est.weighting) if len(group) > 1 else None
+            for tech in group:
+                pt = per_tech.setdefault(tech.name, {"prims": 0, "candidates": 0, "hits": 0})
+                ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, 0), 0,
+                                  settings.max_pairs)
+                with Clock(pt, "create"):
+                    prims = tech.create(paths, ctx)
+                pt["prims"] += len(prims)
+                out = np.zeros((len(rays), 3))
+                with Clock(pt, "walk"):
+                    run = fused_pass(tech, prims, paths, rays, ctx, mis, emit=False, out=out,
+                                     stats=pt)
+                    compiled = run is not None
+                    if compiled:
+                        list(run)
+                if not compiled:
+                    _numpy_stages(tech, group, est, prims, paths, rays, ctx, mis, pt)
+                pt["compiled"] = compiled
+    hits = sum(p["hits"] for p in per_tech.values())
+    walk = sum(p.get("walk", 0.0) for p in per_tech.values())
+    walk_cpu = sum(p.get("walk_cpu", 0.0) for p in per_tech.values())
+    for p in per_tech.values():
+        p["cpu_ns_per_hit"] = 1e9 * p.get("walk_cpu", 0.0) / max(p["hits"], 1)
+        p["hit_fraction"] = p["hits"] / p["candidates"] if p["candidates"] else None
+    return {
+        "photons": photons, "pixels": scene.camera.n_pixels, "vertices": vertices,
+        "hits": hits, "candidates": sum(p["candidates"] for p in per_tech.values()),
+        "trace_seconds": t["trace"], "walk_seconds": walk, "walk_cpu_seconds": walk_cpu,
+        "photon_vertices_per_second": vertices / max(t["trace"], 1e-9),
+        "hits_per_second": hits / max(walk, 1e-9),
+        "cpu_ns_per_hit": 1e9 * walk_cpu / max(hits, 1),
+        "techniques": per_tech,
+    }
+
+
+def steady(scene, spec: str, photons: int, reps: int) -> dict:
+    """:func:`stage_pass` ``reps`` times after a warm-up pass (compiled kernels loaded,
+    buffers allocated): the median of each headline rate, and every pass's."""
+    stage_pass(scene, spec, min(photons, 256))
+    runs = [stage_pass(scene, spec, photons, seed=r) for r in range(reps)]
+    keys = ("hits_per_second", "cpu_ns_per_hit", "photon_vertices_per_second")
+    out = {k: float(np.median([r[k] for r in runs])) for k in keys}
+    out.update({"passes": reps, "photons": photons, "hits": int(np.median([r["hits"]
+                                                                           for r in runs])),
+                "each": {k: [r[k] for r in runs] for k in keys}, "last": runs[-1]})
+    return out
