@@ -69,6 +69,7 @@ import numpy as np
 
 from .estimators import Estimator, parse_estimator
 from .metrics import RELMSE_EPS, relmse, relmse_map, var_relmse
+from .pass_size import auto_photons
 from .render import RenderSettings, render
 from .scene import Scene, SceneError
 
@@ -285,10 +286,12 @@ def compare(
         :func:`psurf_core.distributed.render_distributed` to use a Dask cluster).
     command : str, optional
         The command line, recorded in the outputs.
-    photons : int or list of int, optional
+    photons : int, list of int or "auto", optional
         Photons per pass, for all estimators or one per estimator (each estimator is most
         efficient with its own pass size: large enough that the per-pass overhead is small,
-        small enough for many passes); ``settings.photons`` by default.
+        small enough for many passes); ``"auto"`` (or ``"auto"`` entries): measured per
+        estimator (:func:`psurf_core.pass_size.auto_photons`); ``settings.photons`` by
+        default.
     clock : ``"wall"`` or ``"cpu"``
         What ``seconds`` measures: wall time (``render``'s own budget), or this process's CPU
         time (``time.process_time``, checked after every pass through ``on_pass``), which other
@@ -317,9 +320,11 @@ def compare(
     ests = [s if isinstance(s, Estimator) else parse_estimator(s, scene) for s in specs]
     if photons is None:
         photons = settings.photons
-    if isinstance(photons, int | np.integer):
-        photons = [int(photons)] * len(ests)
-    photons = [int(p) for p in photons]
+    if isinstance(photons, int | np.integer | str):
+        photons = [photons] * len(ests)
+    photons = [auto_photons(scene, e, settings, seconds) if p == "auto" else int(p)
+               for e, p in zip(ests, photons, strict=False)] if len(photons) == len(ests) \
+        else photons
     if len(photons) != len(ests) or min(photons) < 1:
         raise ValueError(f"photons: give one count > 0 or one per estimator ({len(ests)}), "
                          f"got {photons}")

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from psurf_core import load_scene
+from psurf_core.estimators import parse_estimator
 from psurf_core.render import RenderSettings
 from psurf_core.study import (
     OUTPUT_FILES,
@@ -231,3 +232,22 @@ def test_cpu_clock_budget(tiny):
     assert s["clock"] == "cpu" and row["runs"][0]["cpu_seconds"] >= 0.3
     assert row["seconds_per_run"] == row["cpu_seconds_per_run"]
     assert row["runs"][0]["curve"][-1][0] >= 0.3
+
+
+def test_auto_photons_sizes_passes_by_a_timed_pass(monkeypatch):
+    """``--photons auto``: one timed pass of each estimator sizes its passes so that the
+    budget holds about TARGET_PASSES of them (within PHOTON_RANGE); the path tracer keeps
+    its settings."""
+    import psurf_core.pass_size as ps
+
+    scene = load_scene(Path(__file__).resolve().parent.parent / "scenes" / "area.toml")
+    est = parse_estimator("planes", scene)
+    clock = iter([0.0, 0.5])  # the probe pass "takes" 0.5 s: 1000 photons
+    monkeypatch.setattr(ps.time, "perf_counter", lambda: next(clock))
+    n = ps.auto_photons(scene, est, RenderSettings(photons=7), 48.0)
+    assert n == 2000  # 48 s / 48 passes = 1 s a pass = 2000 photons
+    clock = iter([0.0, 1e-9])
+    monkeypatch.setattr(ps.time, "perf_counter", lambda: next(clock))
+    assert ps.auto_photons(scene, est, RenderSettings(), 48.0) == ps.PHOTON_RANGE[1]
+    ref = parse_estimator("reference", scene)
+    assert ps.auto_photons(scene, ref, RenderSettings(photons=7), 48.0) == 7

@@ -44,12 +44,13 @@ DEFAULT_SEED = 0
 # (the numeric ones are ui.cli.common's, so every command words its errors alike)
 
 
-def _photons(text: str) -> list[int]:
+def _photons(text: str) -> list:
     try:
-        return [positive_int(t.strip()) for t in text.split(",")]
+        return [t.strip() if t.strip() == "auto" else positive_int(t.strip())
+                for t in text.split(",")]
     except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"must be one integer > 0 or a comma-separated list "
-                                         f"of them, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"must be 'auto', one integer > 0 or a "
+                                         f"comma-separated list of them, got {text!r}") from None
 
 
 def _specs(text: str) -> list[str]:
@@ -91,7 +92,7 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
             --reference-time seconds (default 2 x --time x number of estimators).
             The image holds only the scene's [render] scatter range (--min-scatter/--max-scatter
             override it; single scattering: 1 and 1).
-            Defaults: --photons {DEFAULT_PHOTONS} --spp {DEFAULT_SPP} --runs {DEFAULT_RUNS} \
+            Defaults: --photons auto --spp {DEFAULT_SPP} --runs {DEFAULT_RUNS} \
 --seed {DEFAULT_SEED}."""),
     )
     p.add_argument("scene", metavar="SCENE.toml", help="scene file (see SCENES.md)")
@@ -113,9 +114,11 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                         "scatter range); default: render the path tracer first")
     p.add_argument("--reference-time", type=positive_float, default=None, metavar="SECONDS",
                    help="time of the reference render (default 2 x --time x estimators)")
-    p.add_argument("--photons", type=_photons, default=[DEFAULT_PHOTONS], metavar="N[,N...]",
-                   help=f"photons per pass: one count for every estimator, or one per "
-                        f"estimator in --estimators order (default {DEFAULT_PHOTONS})")
+    p.add_argument("--photons", type=_photons, default=["auto"], metavar="N[,N...]",
+                   help="photons per pass: one count for every estimator, or one per "
+                        "estimator in --estimators order; 'auto' (the default) times a pass "
+                        "of each estimator and sizes its passes so that the budget holds "
+                        "about 48 of them")
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
     p.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
@@ -162,7 +165,9 @@ def _parse(spec: str, scene):
 def _settings(args):
     from psurf_core.render import RenderSettings
 
-    kw = {"photons": args.photons[0], "spp": args.spp, "radius": args.radius,
+    first = args.photons[0]
+    kw = {"photons": DEFAULT_PHOTONS if first == "auto" else first, "spp": args.spp,
+          "radius": args.radius,
           "radius_shrink": args.radius_shrink}
     if args.memory_budget is not None:
         kw["memory_budget_mib"] = args.memory_budget
