@@ -300,8 +300,10 @@ def photon_row(x, w, t, lights, ph, K, st, g):
     p1 = direction_pdf(K, 1, kind, axis, w2, w1, g)
     p2 = direction_pdf(K, 2, kind, axis, w3, w2, g)
     puv, pu, pv = position_pdfs(kind, lt.pk, lt.u, lt.v)
-    pdf = PdfsRow(flight_pdf(t1, st), flight_pdf(t2, st), flight_pdf(t3, st), p1, p2,
-                  2.0 * np.pi * p1, puv, pu, pv)
+    e1, f1 = flight_pdf(t1, st)
+    e2, f2 = flight_pdf(t2, st)
+    e3, f3 = flight_pdf(t3, st)
+    pdf = PdfsRow(e1, e2, e3, f1, f2, f3, p1, p2, 2.0 * np.pi * p1, puv, pu, pv)
     zero = (0.0, 0.0, 0.0)
     return PathRow(K, kind, st, g, lt.pk, (lt.u, lt.v), axis, lt.eu, lt.ev,
                    vec(x[ph, K - 1]), zero, w3, w2, w1, t3, t2, t1, zero, pdf)
@@ -317,20 +319,23 @@ def at_hit(row, o, psi, s):
 @inline
 def with_t1(row, t1):
     """``row.with_(t1=t1)`` with its pdf."""
+    e, f = flight_pdf(t1, row.st)
     return set_field(set_field(row, "t1", t1), "pdf",
-                     set_field(row.pdf, "t1", flight_pdf(t1, row.st)))
+                     set_field(set_field(row.pdf, "e1", e), "t1", f))
 
 
 @inline
 def with_t2(row, t2):
+    e, f = flight_pdf(t2, row.st)
     return set_field(set_field(row, "t2", t2), "pdf",
-                     set_field(row.pdf, "t2", flight_pdf(t2, row.st)))
+                     set_field(set_field(row.pdf, "e2", e), "t2", f))
 
 
 @inline
 def with_t3(row, t3):
+    e, f = flight_pdf(t3, row.st)
     return set_field(set_field(row, "t3", t3), "pdf",
-                     set_field(row.pdf, "t3", flight_pdf(t3, row.st)))
+                     set_field(set_field(row.pdf, "e3", e), "t3", f))
 
 
 @inline

@@ -29,14 +29,17 @@ POINT, AREA, MESH = KIND_CODE["point"], KIND_CODE["area"], KIND_CODE["mesh"]
 
 # ------------------------------------------------------------------------- the pdfs
 def flight_pdf(t, st):
-    """``st exp(-st t)``: the free-flight pdf of distance ``t`` (1 / scene units)."""
+    """``(E(t), st E(t))``: the transmittance and the free-flight pdf (1 / scene units) of
+    distance ``t``, ``E(t) = exp(-st t)``."""
     with np.errstate(invalid="ignore", over="ignore"):
-        return st * np.exp(-st * t)
+        e = np.exp(-st * t)
+    return e, st * e
 
 
 @twin(flight_pdf)
 def _flight_pdf(t, st):
-    return st * np.exp(-st * t)
+    e = np.exp(-st * t)
+    return e, st * e
 
 
 def emission_pdf(kind, axis, w):
@@ -96,7 +99,9 @@ class Pdfs:
 
     Attributes
     ----------
-    t1, t2, t3 : free-flight pdfs ``st exp(-st t_k)``.
+    e1, e2, e3 : transmittances ``E(t_k) = exp(-st t_k)`` (the short variants' density
+        factors, one exponential each, shared by every member).
+    t1, t2, t3 : free-flight pdfs ``st E(t_k)``.
     w1, w2 : solid-angle pdfs of ``w_k``: the phase function about ``w_{k+1}``, or the
         emission pdf when ``x_k`` is the light (``1/(4 pi)`` point, ``cos/pi`` area/mesh).
     c1, c2 : pdfs of ``cos th_k`` (``2 pi`` times the direction pdf: azimuthal symmetry).
@@ -124,17 +129,33 @@ class Pdfs:
     def _st(self) -> float:
         return self.scene.medium.sigma_t
 
+    def _e(self, t):
+        with np.errstate(invalid="ignore", over="ignore"):
+            return np.exp(-self._st * t)
+
+    @cached_property
+    def e1(self):
+        return self._e(self.rec.t1)
+
+    @cached_property
+    def e2(self):
+        return self._e(self.rec.t2)
+
+    @cached_property
+    def e3(self):
+        return self._e(self.rec.t3)
+
     @cached_property
     def t1(self):
-        return flight_pdf(self.rec.t1, self._st)
+        return self._st * self.e1
 
     @cached_property
     def t2(self):
-        return flight_pdf(self.rec.t2, self._st)
+        return self._st * self.e2
 
     @cached_property
     def t3(self):
-        return flight_pdf(self.rec.t3, self._st)
+        return self._st * self.e3
 
     @cached_property
     def w1(self):
@@ -191,6 +212,9 @@ class PdfsRow(NamedTuple):
     """:class:`Pdfs` of one hit (the compiled twin; same names, same formulas). ``ph`` is the
     constant ``1/(2 pi)`` and ``c2`` is not used by any compiled density."""
 
+    e1: float
+    e2: float
+    e3: float
     t1: float
     t2: float
     t3: float

@@ -41,7 +41,6 @@ from .surface_common import (
     radial,
     ring,
     select_photons,
-    transmittance_of,
     unit,
 )
 
@@ -163,14 +162,14 @@ def density(rec, short):
     ``* E(t1)``)."""
     n = scaled_normal(rec.w2, rec.w1, rec.t1)
     q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * np.abs(dot(n, rec.psi))
-    return q * transmittance_of(rec, rec.t1) if short else q
+    return q * rec.pdf.e1 if short else q
 
 
 @twin(density)
 def _density(rec, short):
     n = scaled_normal(rec.w2, rec.w1, rec.t1)
     q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * abs(dot(n, rec.psi))
-    return q * transmittance_of(rec, rec.t1) if short else q
+    return q * rec.pdf.e1 if short else q
 
 
 # ------------------------------------------------------------------------- Create

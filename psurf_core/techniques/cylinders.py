@@ -43,7 +43,6 @@ from .surface_common import (
     ring,
     select_photons,
     sweep_bounds,
-    transmittance_of,
     unit,
 )
 
@@ -182,14 +181,14 @@ def density(rec, short):
     """Relative ``Q = q_{<=w2} 2pi rho(c1) p(t1) t1 s1 |e_r . psi|`` (short: ``* E(t2)``)."""
     n = scaled_normal(rec.w2, rec.w1, rec.t1)
     q = q_to_w2(rec) * rec.pdf.c1 * rec.pdf.t1 * np.abs(dot(n, rec.psi))
-    return q * transmittance_of(rec, rec.t2) if short else q
+    return q * rec.pdf.e2 if short else q
 
 
 @twin(density)
 def _density(rec, short):
     n = scaled_normal(rec.w2, rec.w1, rec.t1)
     q = q_to_w2(rec) * rec.pdf.c1 * rec.pdf.t1 * abs(dot(n, rec.psi))
-    return q * transmittance_of(rec, rec.t2) if short else q
+    return q * rec.pdf.e2 if short else q
 
 
 # ------------------------------------------------------------------------- Create

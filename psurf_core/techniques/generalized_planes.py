@@ -56,7 +56,6 @@ from .surface_common import (
     plane_solve,
     rebuilt_clear,
     select_photons,
-    transmittance_of,
 )
 
 
@@ -192,13 +191,13 @@ def _reconstruct_t1t3(rec, G, hit):
 def density_t1t3(rec, short):
     """Relative ``Q = p(t2) p(w2) p(w1) |(w1 x w3) . psi|`` (short: ``* E(t1 + t3)``)."""
     q = rec.pdf.t2 * rec.pdf.w2 * rec.pdf.w1 * np.abs(dot(cross(rec.w1, rec.w3), rec.psi))
-    return q * transmittance_of(rec, rec.t1 + rec.t3) if short else q
+    return q * rec.pdf.e1 * rec.pdf.e3 if short else q
 
 
 @twin(density_t1t3)
 def _density_t1t3(rec, short):
     q = rec.pdf.t2 * rec.pdf.w2 * rec.pdf.w1 * abs(dot(cross(rec.w1, rec.w3), rec.psi))
-    return q * transmittance_of(rec, rec.t1 + rec.t3) if short else q
+    return q * rec.pdf.e1 * rec.pdf.e3 if short else q
 
 
 # ------------------------------------------------------------------------- MIS: [t2, t3]
@@ -216,13 +215,13 @@ def _reconstruct_t2t3(rec, G, hit):
 def density_t2t3(rec, short):
     """Relative ``Q = p(w2) p(w1) p(t1) |(w2 x w3) . psi|`` (short: ``* E(t2 + t3)``)."""
     q = rec.pdf.t1 * rec.pdf.w2 * rec.pdf.w1 * np.abs(dot(cross(rec.w2, rec.w3), rec.psi))
-    return q * transmittance_of(rec, rec.t2 + rec.t3) if short else q
+    return q * rec.pdf.e2 * rec.pdf.e3 if short else q
 
 
 @twin(density_t2t3)
 def _density_t2t3(rec, short):
     q = rec.pdf.t1 * rec.pdf.w2 * rec.pdf.w1 * abs(dot(cross(rec.w2, rec.w3), rec.psi))
-    return q * transmittance_of(rec, rec.t2 + rec.t3) if short else q
+    return q * rec.pdf.e2 * rec.pdf.e3 if short else q
 
 
 _COMPILED = {

@@ -51,7 +51,6 @@ from .surface_common import (
     own_segment,
     q_to_w2,
     rebuilt_clear,
-    transmittance_of,
 )
 
 
@@ -196,13 +195,13 @@ def _reconstruct(rec, G, hit):
 def density(rec, short):
     """Relative ``Q = q_{<=w2} p(w1) |(w1 x w2) . psi|`` (short: ``* E(t1) E(t2)``)."""
     q = q_to_w2(rec) * rec.pdf.w1 * np.abs(dot(cross(rec.w1, rec.w2), rec.psi))
-    return q * transmittance_of(rec, rec.t1 + rec.t2) if short else q
+    return q * rec.pdf.e1 * rec.pdf.e2 if short else q
 
 
 @twin(density)
 def _density(rec, short):
     q = q_to_w2(rec) * rec.pdf.w1 * abs(dot(cross(rec.w1, rec.w2), rec.psi))
-    return q * transmittance_of(rec, rec.t1 + rec.t2) if short else q
+    return q * rec.pdf.e1 * rec.pdf.e2 if short else q
 
 
 # ------------------------------------------------------------------------- Create

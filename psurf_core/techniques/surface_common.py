@@ -317,16 +317,6 @@ def _q_to_w2(rec, pdf=None):
     return (rec.pdf.t3 if rec.K >= 3 else 1.0) * rec.pdf.w2
 
 
-def transmittance_of(rec, t):
-    """``exp(-st t)`` on a record: the short variants' extra density factor."""
-    return np.exp(-rec.st * t)
-
-
-@twin(transmittance_of)
-def _transmittance_of(rec, t):
-    return np.exp(-rec.st * t)
-
-
 def transmittance(ctx: PassContext, *ts) -> np.ndarray:
     """``exp(-st sum(ts))``: the short variants' extra density factor."""
     return np.exp(-ctx.scene.medium.sigma_t * sum(ts))
