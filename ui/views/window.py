@@ -364,16 +364,22 @@ def compose(plotter: pv.Plotter, state: ViewState, *, keep_camera: bool = False)
     """(Re)draw every panel of the window for ``state``."""
     scene_view.set_scale(plotter.window_size[1])
     plotter.subplot(*CELL_3D)
+    _clear_bars(plotter)
+    compose_3d(plotter, state, keep_camera=keep_camera)
+    compose_images(plotter, state)
+    compose_panel(plotter, state)
+
+
+def compose_3d(plotter: pv.Plotter, state: ViewState, *, keep_camera: bool = False) -> None:
+    """(Re)draw the 3D view of ``state`` into the plotter's current renderer: the window's
+    left cell, or a plotter of its own (the web page's 3D view, :mod:`ui.web`)."""
     cam_pos = plotter.camera_position if keep_camera else None
     plotter.renderer.clear_actors()
-    _clear_bars(plotter)
     plotter.renderer.set_background(scene_view.BACKGROUND)
     _compose_3d(plotter, state)
     plotter.camera_position = cam_pos if cam_pos is not None else \
         scene_view.overview_camera(state.scene)
     plotter.renderer.ResetCameraClippingRange()
-    compose_images(plotter, state)
-    compose_panel(plotter, state)
 
 
 def compose_panel(plotter: pv.Plotter, state: ViewState) -> None:
