@@ -40,6 +40,7 @@ from ui.cli.render import (  # noqa: F401 - DEFAULT_* are part of app's interfac
 from ui.cli.render import initial_radius as _initial_radius
 from ui.cli.render import npz_payload as _npz_payload
 from ui.cli.screenshot import add_screenshot_parser
+from ui.cli.serve import add_serve_parser
 
 PROG = "psurf"
 
@@ -91,6 +92,8 @@ def build_parser() -> Parser:
                      --out conv.gif [--mode render|techniques|bounces]   image panels
               breakdown SCENE.toml --estimator SPEC --out DIR    per-technique, weight and
                                                                  per-K PNGs of an MIS set
+              serve [SCENE.toml] [--port 8080] [--host H]        the app as a web page, one
+                                                                 session per browser tab
 
             Run 'python app.py render --help' for the render options."""),
         epilog=f"estimators (--estimator NAME):\n{estimators}",
@@ -98,7 +101,7 @@ def build_parser() -> Parser:
     top.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = top.add_subparsers(
         dest="command", parser_class=Parser,
-        metavar="{render,demo,screenshot,compare,lecture,record,breakdown}")
+        metavar="{render,demo,screenshot,compare,lecture,record,breakdown,serve}")
 
     add_render_parser(sub, estimators)  # with --dask/--workers/--jobs
 
@@ -140,6 +143,7 @@ def build_parser() -> Parser:
     add_compare_parser(sub)  # equal-time study
     add_lecture_parser(sub)  # lecture mode: the tutorials' key states
     add_record_parsers(sub)  # record (GIF/MP4), breakdown (MIS PNGs)
+    add_serve_parser(sub)  # the web page (ui.web)
     return top
 
 
@@ -306,6 +310,9 @@ def _demo_offline(scene, args) -> int:
 
     for p in written:
         print(p)
+    print(f"web page (the app for a class, one session per browser tab): "
+          f"python app.py serve {os.path.basename(scene.path)} --port 8080, then open "
+          f"http://127.0.0.1:8080/")
     ref = results.get("reference")
     for name, res in results.items():
         line = (f"{name}: {_plural(res.passes, 'pass')} in {res.seconds:.1f} s, "

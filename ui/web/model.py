@@ -29,26 +29,10 @@ from ui.views import controls, hits_view, image_panels, scene_view, window
 from ui.views.stepper import DEFAULT_PHOTONS, STAGES
 
 from . import _view3d, tables
+from .scenes import parse_specs
 
 #: Size of the panels picture (render | maps), in pixels.
 PANEL_SIZE = (1100, 430)
-
-
-def parse_specs(text: str, scene) -> list[str]:
-    """``A,B`` checked for ``scene`` (the first, inspected, needs photons); ``ValueError``
-    with one line otherwise (the message ``serve --estimators`` gives)."""
-    specs = [e.strip() for e in str(text).split(",")]
-    if not specs or any(not e for e in specs):
-        raise ValueError(f"estimators must be specs A,B, got {text!r}")
-    for i, e in enumerate(specs):
-        try:
-            est = parse_estimator(e, scene)
-        except (ValueError, KeyError, ModuleNotFoundError) as ex:
-            raise ValueError(f"estimator {e!r}: {' '.join(str(ex).split())}") from None
-        if i == 0 and est.reference:
-            raise ValueError("the first estimator is the one the stages inspect: it must be "
-                             f"a photon estimator, not {e!r}")
-    return specs
 
 
 class WebSession:

@@ -364,7 +364,8 @@ def main(argv=None) -> int:
     from ui.views.stepper import DEFAULT_PHOTONS
 
     from . import layout, scenes
-    from .model import WebSession, parse_specs
+    from .model import WebSession
+    from .scenes import parse_specs
 
     if args.scene in scenes.bundled():
         path, label = scenes.bundled_path(args.scene), args.scene

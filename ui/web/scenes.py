@@ -13,6 +13,8 @@ from __future__ import annotations
 import os
 import tomllib
 
+from psurf_core.estimators import parse_estimator
+
 #: The repository's bundled scenes.
 SCENES_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
     os.path.abspath(__file__)))), "scenes")
@@ -93,6 +95,18 @@ def save_upload(name: str, content: bytes, folder: str, index: int) -> str:
     return path
 
 
-def upload_label(path: str, name: str) -> str:
-    """What the page calls an uploaded scene: the browser's file name."""
-    return f"{os.path.basename(str(name))} (uploaded)"
+def parse_specs(text: str, scene) -> list[str]:
+    """``A,B`` checked for ``scene`` (the first, inspected, needs photons); ``ValueError``
+    with one line otherwise (the message ``serve --estimators`` gives)."""
+    specs = [e.strip() for e in str(text).split(",")]
+    if not specs or any(not e for e in specs):
+        raise ValueError(f"estimators must be specs A,B, got {text!r}")
+    for i, e in enumerate(specs):
+        try:
+            est = parse_estimator(e, scene)
+        except (ValueError, KeyError, ModuleNotFoundError) as ex:
+            raise ValueError(f"estimator {e!r}: {' '.join(str(ex).split())}") from None
+        if i == 0 and est.reference:
+            raise ValueError("the first estimator is the one the stages inspect: it must be "
+                             f"a photon estimator, not {e!r}")
+    return specs
