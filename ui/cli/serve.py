@@ -54,6 +54,7 @@ def add_serve_parser(sub) -> None:
     p.add_argument("--max-sessions", type=positive_int, default=DEFAULT_MAX_SESSIONS,
                    metavar="N", help=f"browser tabs at once (default {DEFAULT_MAX_SESSIONS})")
     p.add_argument("--photons", type=positive_int, default=None, help=argparse.SUPPRESS)
+    p.add_argument("--passes", type=positive_int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--spare", type=int, default=1, help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_serve)
 
@@ -89,7 +90,7 @@ def cmd_serve(args) -> int:
     except (socket.gaierror, UnicodeError):
         raise CliError(f"--host {args.host}: not an address of this machine") from None
     launcher = Launcher(name, args.estimators, max_sessions=args.max_sessions,
-                        spare=max(0, args.spare), photons=args.photons)
+                        spare=max(0, args.spare), photons=args.photons, passes=args.passes)
 
     def ready(url: str) -> None:
         print(f"psurf: serving {url} ({args.max_sessions} sessions at most; Ctrl-C stops)",

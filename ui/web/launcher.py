@@ -73,11 +73,17 @@ class Launcher:
         Sessions at once; a further tab gets the busy page (HTTP 503).
     spare : int
         Sessions started ahead of time, so a new tab opens at once.
+    photons, passes : int, optional
+        Photons per pass and passes per estimator of every session (tests: fixed pictures).
+    grace : float
+        Seconds a session outlives its last closed websocket.
     """
 
     def __init__(self, scene: str, estimators: str, *, max_sessions: int = 10,
-                 spare: int = 1, photons: int | None = None, grace: float = GRACE):
+                 spare: int = 1, photons: int | None = None, passes: int | None = None,
+                 grace: float = GRACE):
         self.scene, self.estimators, self.photons = scene, estimators, photons
+        self.passes = passes
         self.max_sessions, self.spare, self.grace = int(max_sessions), int(spare), grace
         self.sessions: dict[str, Session] = {}
         self.client: ClientSession | None = None
@@ -88,7 +94,8 @@ class Launcher:
     def _command(self) -> list[str]:
         cmd = [sys.executable, "-m", "ui.web.page", "--port", "0", "--scene", self.scene,
                "--estimators", self.estimators]
-        return cmd + (["--photons", str(self.photons)] if self.photons else [])
+        cmd += ["--photons", str(self.photons)] if self.photons else []
+        return cmd + (["--passes", str(self.passes)] if self.passes else [])
 
     async def _spawn(self) -> Session:
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(

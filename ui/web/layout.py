@@ -167,6 +167,9 @@ def build(server, view_plotter):
                 v.VAlert("{{ upload_error }}", v_if="upload_error", type="error",
                          density="compact", closable=True, id="upload-error",
                          **{"click:close": "upload_error = ''"})
+                # What tests (and curious students) can read without parsing pictures.
+                html.Div("{{ stage }}|{{ pixel[0] }},{{ pixel[1] }}|{{ passes }}|{{ spec }}|"
+                         "{{ busy }}|{{ view_token }}", id="probe", style="display: none")
                 with v.VRow(dense=True):
                     view = _left(view_plotter)
                     _right()

@@ -46,14 +46,19 @@ class WebSession:
         Estimators of the panels; the first is inspected (:func:`parse_specs`).
     workers : int
         Background render processes (0: none, passes are rendered by :meth:`poll`).
+    max_passes : int, optional
+        Passes per estimator after which the render stops (default: until paused).
     """
 
     def __init__(self, scene_path: str, specs, *, seed: int = 0,
-                 photons: int = DEFAULT_PHOTONS, workers: int = 1, label: str | None = None):
+                 photons: int = DEFAULT_PHOTONS, workers: int = 1, label: str | None = None,
+                 max_passes: int | None = None):
         specs = list(specs)
         st = window.build_state(scene_path, specs[0], seed, None, photons, render_passes=False)
         st.extra_specs = tuple(specs[1:])
         window.attach_progressive(st, workers=workers)
+        if max_passes is not None:  # a fixed number of passes (tests: the same pictures)
+            st.prog.reset(max_passes=int(max_passes))
         self.s = st
         self.label = label or os.path.basename(scene_path)
         self.params = controls.MediumParams.of(st.scene, photons)

@@ -49,6 +49,7 @@ class Page:
         self.last_input = time.monotonic()
         self.last_panels = 0.0
         self.idle_paused = False
+        self.dirty = False  # passes arrived that the panels do not show yet
         self.view = None  # the remote view widget (set by main)
 
     # ------------------------------------------------------------------ state
@@ -68,7 +69,7 @@ class Page:
         t = self.m.texts()
         self.state.update({k: t[k] for k in ("stage_index", "caption", "pixel", "panel_text",
                                              "evaluate", "reconstruct", "members", "mode",
-                                             "passes", "estimators")})
+                                             "passes", "estimators", "spec")})
         self.state.stage = t["stage"]
         self.state.status = self.status_text()
 
@@ -138,10 +139,11 @@ class Page:
                 and time.monotonic() - self.last_input > IDLE_PAUSE):
             self.idle_paused = True
             m.play(False)
-        got = m.poll()
+        self.dirty = self.dirty or bool(m.poll())
         with self.state:
-            if got and not self.lock.locked() and \
+            if self.dirty and not self.lock.locked() and \
                     time.monotonic() - self.last_panels >= PANEL_PERIOD:
+                self.dirty = False
                 self.push_panels()
                 self.state.passes = m.passes
                 if self.state.stage_index < 3:
@@ -353,6 +355,7 @@ def main(argv=None) -> int:
     ap.add_argument("--estimators", default="planes")
     ap.add_argument("--photons", type=int, default=None)
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--passes", type=int, default=None)
     args = ap.parse_args(argv)
     import faulthandler
     import signal
@@ -375,7 +378,7 @@ def main(argv=None) -> int:
 
     specs = parse_specs(args.estimators, load_scene(path))
     session = WebSession(path, specs, photons=args.photons or DEFAULT_PHOTONS,
-                         workers=args.workers, label=label)
+                         workers=args.workers, label=label, max_passes=args.passes)
     server = get_server(name="psurf", client_type="vue3")
     upload_dir = tempfile.mkdtemp(prefix="psurf-web-")
     page = Page(server, session, upload_dir)

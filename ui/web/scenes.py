@@ -75,8 +75,8 @@ def check_upload(name: str, content: bytes) -> str:
         raise UploadError(f"{label}: not UTF-8 text") from None
     try:
         data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise UploadError(f"{label}: not valid TOML ({e})") from None
+    except tomllib.TOMLDecodeError:
+        return text  # the core's loader says what is wrong, as on the command line
     refs = _file_refs(data)
     if refs:
         raise UploadError(f"{label}: {refs[0]}: an uploaded scene cannot reference files "
