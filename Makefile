@@ -5,7 +5,7 @@ VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick lint venv clean
+.PHONY: demo test test-slow bench bench-quick lint venv clean browser
 
 venv: $(STAMP)
 
@@ -27,10 +27,26 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VPY) app.py demo
 
-test: $(STAMP)
+# The browser tests (tests/test_web*.py) drive Debian's headless Chromium with selenium; as
+# root with apt-get the browser and its driver are installed here, otherwise those tests skip
+# saying why.
+BROWSER := /usr/bin/chromium
+browser:
+	@if [ ! -x $(BROWSER) ] || ! command -v chromedriver >/dev/null 2>&1; then \
+	    if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	        echo ">> installing chromium and chromium-driver (apt-get) for the browser tests"; \
+	        (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	            chromium chromium-driver >/dev/null) || \
+	        echo ">> apt-get failed; the browser tests will skip"; \
+	    else \
+	        echo ">> no chromium/chromedriver and no root apt-get: the browser tests will skip"; \
+	    fi; \
+	fi
+
+test: $(STAMP) browser
 	$(VPY) -m pytest -q -m "not slow"
 
-test-slow: $(STAMP)
+test-slow: $(STAMP) browser
 	$(VPY) -m pytest -q -m slow
 
 # Stage rates per estimator family, 1 vs 2 processes, doubling tables, peak RSS of a 10^6-photon

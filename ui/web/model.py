@@ -206,7 +206,13 @@ class WebSession:
         """Compose the stage in the 3D view (the window's left cell, alone)."""
         p = self.view
         scene_view.set_scale(p.window_size[1])
-        window.compose_3d(p, self.s, keep_camera=keep_camera)
+        # Once rendered, pyvista renders after every added actor; a stage adds dozens (seconds
+        # in software OpenGL): held until the frame is built, as the window does.
+        held, p.suppress_rendering = p.suppress_rendering, True
+        try:
+            window.compose_3d(p, self.s, keep_camera=keep_camera)
+        finally:
+            p.suppress_rendering = held
 
     def panels_png(self) -> bytes:
         """The image panels (render and variance, or the mode's maps) as PNG."""
