@@ -57,6 +57,7 @@ class WebSession:
         st = window.build_state(scene_path, specs[0], seed, None, photons, render_passes=False)
         st.extra_specs = tuple(specs[1:])
         window.attach_progressive(st, workers=workers)
+        _lowest_priority(st.prog)
         if max_passes is not None:  # a fixed number of passes (tests: the same pictures)
             st.prog.reset(max_passes=int(max_passes))
         self.s = st
@@ -273,6 +274,20 @@ class WebSession:
         self.s.prog.close()
         self.view.close()
         self.panel_plotter.close()
+
+
+#: Niceness of a session's render worker: the pages of every session come first (the window
+#: runs its worker at +10; ten sessions' workers at +10 would still take half the CPU).
+WORKER_NICENESS = 19
+
+
+def _lowest_priority(prog) -> None:
+    """Renice the render worker processes of ``prog`` to :data:`WORKER_NICENESS`."""
+    for proc in getattr(prog, "_procs", ()):
+        try:
+            os.setpriority(os.PRIO_PROCESS, proc.pid, WORKER_NICENESS)
+        except (AttributeError, OSError):  # not POSIX, or not allowed: leave it at +10
+            pass
 
 
 def png_bytes(img) -> bytes:

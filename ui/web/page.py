@@ -21,12 +21,15 @@ import tempfile
 import time
 import traceback
 
-#: Seconds between polls of the background render; panels are redrawn at most every
-#: PANEL_PERIOD seconds while passes arrive.
+#: Seconds between polls of the background render.
 TICK = 0.25
-PANEL_PERIOD = 0.75
-#: Rendering pauses after this many seconds without input from the page (bounded work).
+#: While passes arrive the panels are redrawn every PANEL_PERIOD seconds at first, then less
+#: often as the picture settles (+PANEL_SLOWDOWN s per pass, at most PANEL_PERIOD_MAX).
+PANEL_PERIOD, PANEL_SLOWDOWN, PANEL_PERIOD_MAX = 0.75, 0.05, 5.0
+#: Rendering pauses after this many seconds without input from the page, or after this many
+#: seconds of the inspected estimator's rendering (``play`` continues): bounded work.
 IDLE_PAUSE = 120.0
+RENDER_BUDGET = 90.0
 #: Estimators offered in the estimator box (any spec may be typed).
 ESTIMATOR_ITEMS = ["planes", "points", "bre", "beams", "planes,beams", "paper-single",
                    "paper-multi", "planes,paper-multi"]
@@ -50,6 +53,7 @@ class Page:
         self.last_panels = 0.0
         self.idle_paused = False
         self.dirty = False  # passes arrived that the panels do not show yet
+        self.budget = RENDER_BUDGET  # worker seconds before the render pauses by itself
         self.view = None  # the remote view widget (set by main)
 
     # ------------------------------------------------------------------ state
@@ -81,7 +85,8 @@ class Page:
             return f"render error: {m.render_error}"
         if m.passes == 0:
             return "rendering the first pass (kernels compile on first use)..."
-        paused = "" if m.s.playing else (" (paused after 2 min without input)"
+        paused = "" if m.s.playing else (" (paused: no input for 2 min, or its render "
+                                         "budget spent; play continues)"
                                          if self.idle_paused else " (paused)")
         return f"{m.label}: {m.passes} passes of {m.s.estimator.spec}{paused}"
 
@@ -135,14 +140,16 @@ class Page:
 
     def tick(self) -> None:
         m = self.m
-        if (m.s.playing and not self.idle_paused
-                and time.monotonic() - self.last_input > IDLE_PAUSE):
+        if m.s.playing and not self.idle_paused and (
+                time.monotonic() - self.last_input > IDLE_PAUSE
+                or m.s.prog.runs[0].seconds > self.budget):
             self.idle_paused = True
             m.play(False)
         self.dirty = self.dirty or bool(m.poll())
+        period = min(PANEL_PERIOD + PANEL_SLOWDOWN * m.passes, PANEL_PERIOD_MAX)
         with self.state:
             if self.dirty and not self.lock.locked() and \
-                    time.monotonic() - self.last_panels >= PANEL_PERIOD:
+                    time.monotonic() - self.last_panels >= period:
                 self.dirty = False
                 self.push_panels()
                 self.state.passes = m.passes
@@ -249,6 +256,8 @@ def bind(page: Page) -> None:
 
     @trigger("play")
     def play():
+        if page.idle_paused:  # another budget from here
+            page.budget = m.s.prog.runs[0].seconds + RENDER_BUDGET
         page.idle_paused = False
         m.play(not m.s.playing)
         st.playing = m.s.playing
