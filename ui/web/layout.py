@@ -17,7 +17,7 @@ triggers by name; no logic (that is :mod:`ui.web.page`).
 from __future__ import annotations
 
 from trame.ui.vuetify3 import SinglePageLayout
-from trame.widgets import html
+from trame.widgets import client, html
 from trame.widgets import vuetify3 as v
 
 from . import _view3d
@@ -30,6 +30,11 @@ _UPLOAD_JS = (
     f"{_F} && ({_F}.size > {MAX_UPLOAD} ? (upload_error = {_F}.name + ': ' + {_F}.size + "
     f"' bytes, more than the {MAX_UPLOAD // 1024} KiB an uploaded scene may have') : "
     f"{_F}.text().then(t => trigger('upload', [{_F}.name, t])))"
+)
+#: The window's keys n / p (next / previous stage) anywhere on the page but in a text box.
+_KEYS_JS = (
+    "window.addEventListener('keydown', e => (e.target.tagName == 'INPUT' || busy) ? 0 : "
+    "(e.key == 'n' ? trigger('step', [1]) : (e.key == 'p' ? trigger('step', [-1]) : 0)))"
 )
 _PICK_JS = ("trigger('pick', [$event.offsetX, $event.offsetY, $event.target.clientWidth, "
             "$event.target.clientHeight])")
@@ -65,9 +70,9 @@ def _left(view_plotter):
                       id="view3d"):
             view = _view3d.remote_view(view_plotter)
         with html.Div(classes="d-flex align-center flex-wrap mt-1"):
-            v.VBtn("◀ previous", click="trigger('step', [-1])", size="small",
+            v.VBtn("◀ previous (p)", click="trigger('step', [-1])", size="small",
                    disabled=("busy",), id="prev", classes="mr-1")
-            v.VBtn("next ▶", click="trigger('step', [1])", size="small", disabled=("busy",),
+            v.VBtn("next (n) ▶", click="trigger('step', [1])", size="small", disabled=("busy",),
                    id="next", classes="mr-3")
             v.VBtn("hit −", click="trigger('hit', [-1])", size="small", disabled=("busy",))
             v.VBtn("hit +", click="trigger('hit', [1])", size="small", disabled=("busy",),
@@ -167,6 +172,7 @@ def build(server, view_plotter):
                 v.VAlert("{{ upload_error }}", v_if="upload_error", type="error",
                          density="compact", closable=True, id="upload-error",
                          **{"click:close": "upload_error = ''"})
+                client.ClientTriggers(mounted=_KEYS_JS)
                 # What tests (and curious students) can read without parsing pictures.
                 html.Div("{{ stage }}|{{ pixel[0] }},{{ pixel[1] }}|{{ passes }}|{{ spec }}|"
                          "{{ busy }}|{{ view_token }}", id="probe", style="display: none")
