@@ -141,6 +141,9 @@ def test_page_steps_picks_and_toggles(server, driver, tmp_path):
         if stage == "reconstruct":
             table = text_of(d, "reconstruct-table")
             assert "MIS weighting" in table and "weights sum to 1.000" in table
+    token = probe(d)["token"]
+    click(d, "stage-2")  # a stage button goes straight there
+    step_to(d, "intersect", tmp_path, token)
     # A click on the render panel picks the pixel under it.
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By

@@ -65,7 +65,7 @@ def _left(view_plotter):
                           divided=True, color="primary", id="stages"):
             for i, name in enumerate(("1 Trace", "2 Create", "3 Intersect", "4 Evaluate",
                                       "5 Reconstruct")):
-                v.VBtn(name, value=i, size="small", disabled=("busy",), id=f"stage-{i}")
+                v.VBtn(name, value=(str(i),), size="small", disabled=("busy",), id=f"stage-{i}")
         with html.Div(style="height: 560px; width: 100%; border: 1px solid #ccc",
                       id="view3d"):
             view = _view3d.remote_view(view_plotter)
