@@ -5,7 +5,8 @@ module                 owns
 =====================  ==================================================================
 :mod:`.launcher`       the front server: one session process per browser tab, the proxy
                        to it, the "server busy" page, reaping closed tabs
-:mod:`.page`           one session's trame server: state keys and callbacks, downloads
+:mod:`.session`        one session's process: its trame server, download routes
+:mod:`.page`           one session's page: state keys and callbacks
 :mod:`.layout`         the page's layout (Vuetify 3), bound to state keys by name
 :mod:`.model`          the session's app (plain Python): the window's state and actions
 :mod:`.tables`         the Evaluate / Reconstruct tables from the core's records

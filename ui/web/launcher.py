@@ -1,7 +1,7 @@
 """The front server of ``python app.py serve``: one session process per browser tab.
 
 A trame server holds one state for all its clients, so each tab gets a server of its own:
-``GET /`` starts (or takes a ready spare of) ``python -m ui.web.page`` bound to 127.0.0.1 on a
+``GET /`` starts (or takes a ready spare of) ``python -m ui.web.session`` bound to 127.0.0.1 on a
 free port and redirects to ``/s/<id>/``, which this server proxies (HTTP and the websocket)
 to that process. A tab's state, its pictures and its background render worker live and die
 with its process: one session's exception or crash cannot reach another or this server.
@@ -92,7 +92,7 @@ class Launcher:
 
     # ------------------------------------------------------------------ processes
     def _command(self) -> list[str]:
-        cmd = [sys.executable, "-m", "ui.web.page", "--port", "0", "--scene", self.scene,
+        cmd = [sys.executable, "-m", "ui.web.session", "--port", "0", "--scene", self.scene,
                "--estimators", self.estimators]
         cmd += ["--photons", str(self.photons)] if self.photons else []
         return cmd + (["--passes", str(self.passes)] if self.passes else [])
