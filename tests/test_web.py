@@ -14,6 +14,7 @@ import subprocess
 import sys
 import urllib.error
 import urllib.request
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -147,6 +148,7 @@ def test_page_steps_picks_and_toggles(server, driver, tmp_path):
     # A click on the render panel picks the pixel under it.
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
 
     img = d.find_element(By.ID, "panels")
     w = img.size["width"]
@@ -159,8 +161,21 @@ def test_page_steps_picks_and_toggles(server, driver, tmp_path):
     wait_for(lambda: probe(d)["spec"] == ESTIMATORS + "~plane-t1t2-short"
              and probe(d)["passes"] >= 2 and not probe(d)["busy"], 300, "the member toggle")
     assert probe(d)["pixel"] == picked
+    # A slider moved with the keyboard: applied once it rests; the render starts over.
+    panels_before = stable_png(d, "panels")
+    thumb = d.find_elements(By.CSS_SELECTOR, ".v-slider-thumb")[0]  # sigma_s
+    value = float(thumb.get_attribute("aria-valuenow"))
+    token = probe(d)["token"]
+    thumb.send_keys(*[Keys.ARROW_RIGHT] * 5)
+    wait_for(lambda: probe(d)["token"] > token and probe(d)["passes"] >= 2
+             and not probe(d)["busy"], 300, "the slider's restart")
+    assert float(thumb.get_attribute("aria-valuenow")) == pytest.approx(value + 0.05)
+    # Panel modes: the MIS techniques' contributions and weights instead of the renders.
+    click(d, "mode-techniques")
+    wait_for(lambda: not np.array_equal(stable_png(d, "panels"), panels_before), 120,
+             "the techniques panels")
+    click(d, "mode-render")
     # A bad estimator: the one-line message on the page; the session goes on.
-    from selenium.webdriver.common.keys import Keys
 
     box = d.find_element(By.ID, "estimators")  # Vuetify puts the id on the input
     box.send_keys(Keys.CONTROL, "a")
@@ -223,19 +238,62 @@ def test_bad_upload_then_good(server, driver, tmp_path):
     assert not d.find_elements(By.ID, "upload-error")
 
 
-def test_busy_page_past_the_limit(server):
-    import json
+def get(url: str):
+    """``(status, headers, body)`` of a GET that follows no redirect (closed after)."""
 
     class NoRedirect(urllib.request.HTTPRedirectHandler):
         def redirect_request(self, *a, **k):
             return None
 
-    opener = urllib.request.build_opener(NoRedirect)
-    live = json.loads(urllib.request.urlopen(server.url + "status", timeout=30).read())
+    try:
+        with urllib.request.build_opener(NoRedirect).open(url, timeout=60) as r:
+            return r.status, r.headers, r.read()
+    except urllib.error.HTTPError as e:
+        with e:
+            return e.code, e.headers, e.read()
+
+
+def _children(pid: int) -> list[int]:
+    """Processes whose parent is ``pid`` (from /proc)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(d.name))
+    return out
+
+
+def test_a_crashed_session_leaves_the_others(server, driver):
+    import os
+    import signal
+
+    before = set(_children(server.proc.pid))
+    code, headers, _ = get(server.url)
+    assert code == 302
+    path = headers["Location"]
+    new = wait_for(lambda: sorted(set(_children(server.proc.pid)) - before), 60,
+                   "the new session's process")
+    os.kill(new[-1], signal.SIGKILL)
+    code = wait_for(lambda: get(server.url.rstrip("/") + path)[0] in (404, 500) or None, 30,
+                    "the dead session's page")
+    assert code is True
+    # The first tab's session goes on.
+    token = probe(driver)["token"]
+    click(driver, "prev")
+    wait_for(lambda: probe(driver)["token"] > token, 120, "a step in the first tab")
+    assert server.proc.poll() is None
+
+
+def test_busy_page_past_the_limit(server):
+    import json
+
+    with urllib.request.urlopen(server.url + "status", timeout=30) as r:
+        live = json.loads(r.read())
     for _ in range(live["max_sessions"] - live["sessions"]):
-        with pytest.raises(urllib.error.HTTPError) as e:
-            opener.open(server.url, timeout=60)
-        assert e.value.code == 302
-    with pytest.raises(urllib.error.HTTPError) as e:
-        opener.open(server.url, timeout=60)
-    assert e.value.code == 503 and b"server busy" in e.value.read()
+        assert get(server.url)[0] == 302
+    code, _, body = get(server.url)
+    assert code == 503 and b"server busy" in body

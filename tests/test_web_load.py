@@ -35,10 +35,11 @@ class NoRedirect(urllib.request.HTTPRedirectHandler):
 def new_session(url: str) -> str:
     """``GET /`` without following the redirect: the session's path ``/s/<id>/``."""
     try:
-        urllib.request.build_opener(NoRedirect).open(url, timeout=120)
+        urllib.request.build_opener(NoRedirect).open(url, timeout=120).close()
     except urllib.error.HTTPError as e:
-        assert e.code == 302, f"GET / answered {e.code}"
-        return e.headers["Location"]
+        with e:
+            assert e.code == 302, f"GET / answered {e.code}"
+            return e.headers["Location"]
     raise AssertionError("GET / did not redirect to a session")
 
 
@@ -103,7 +104,8 @@ def test_ten_sessions_for_a_minute():
             await asyncio.wait_for(asyncio.gather(*tasks), SECONDS + 120)
 
         asyncio.run(main())
-        status = json.loads(urllib.request.urlopen(server.url + "status", timeout=30).read())
+        with urllib.request.urlopen(server.url + "status", timeout=30) as r:
+            status = json.loads(r.read())
     steps, picks = sorted(out["step"]), sorted(out["pick"])
     summary = {"sessions": SESSIONS, "seconds": SECONDS, "startup_s": round(out["startup"], 1),
                "steps": len(steps), "step_median_s": round(statistics.median(steps), 3),

@@ -66,6 +66,12 @@ class Server:
 
     def stop(self) -> None:
         """Ctrl-C, as a person would; the front stops its sessions."""
+        try:
+            self._stop()
+        finally:
+            self.log.close()
+
+    def _stop(self) -> None:
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
             try:

@@ -93,8 +93,7 @@ def _sliders() -> None:
             with v.VCol(cols=6, classes="py-0"):
                 v.VSlider(v_model=(key,), label=label, min=lo, max=hi, step=step,
                           density="compact", hide_details=True, thumb_label=True,
-                          disabled=("busy",), id=f"slider-{key}",
-                          end=f"trigger('slide', ['{key}', $event])")
+                          disabled=("busy",), id=f"slider-{key}")
 
 
 def _tables() -> None:

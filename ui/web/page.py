@@ -26,6 +26,8 @@ PANEL_PERIOD, PANEL_SLOWDOWN, PANEL_PERIOD_MAX = 0.75, 0.05, 5.0
 #: seconds of the inspected estimator's rendering (``play`` continues): bounded work.
 IDLE_PAUSE = 120.0
 RENDER_BUDGET = 90.0
+#: Seconds a slider must rest before the scene is rebuilt and the render restarts.
+SLIDER_REST = 0.5
 #: Estimators offered in the estimator box (any spec may be typed).
 ESTIMATOR_ITEMS = ["planes", "points", "bre", "beams", "planes,beams", "paper-single",
                    "paper-multi", "planes,paper-multi"]
@@ -239,16 +241,34 @@ def bind(page: Page) -> None:
         await page.compute(m.inspect)
         page.push_all()
 
-    @trigger("slide")
-    async def slide(_key=None, _value=None):
+    async def apply_sliders():
         p = MediumParams(float(st.sigma_s), float(st.sigma_a), float(st.g),
-                         int(round(2.0 ** float(st.photons_log2))))
+                         int(round(2.0 ** float(st.photons_log2)))).clamped()
+        if p == m.params.clamped():
+            return  # the server's own update of the sliders, or no real change
         m.set_params(p)
         await page.compute(m.inspect)
         q = m.params
         st.update({"sigma_s": q.sigma_s, "sigma_a": q.sigma_a, "g": q.g,
                    "photons_log2": math.log2(q.photons)})
         page.push_all()
+
+    guarded_apply = guarded(page, apply_sliders)
+    pending = {"task": None, "waiting": False}
+
+    @st.change("sigma_s", "sigma_a", "g", "photons_log2")
+    def slid(**_):
+        """A slider moved (drag or keys): applied once it rests (as the window debounces)."""
+        if pending["task"] is not None and pending["waiting"]:
+            pending["task"].cancel()  # still resting: start the wait again
+
+        async def later():
+            pending["waiting"] = True
+            await asyncio.sleep(SLIDER_REST)
+            pending["waiting"] = False  # from here on it runs to the end
+            await guarded_apply()
+
+        pending["task"] = asyncio.ensure_future(later())
 
     @trigger("play")
     def play():
