@@ -26,6 +26,7 @@ from web_support import (
     compare,
     stable_png,
     wait_for,
+    warm_up,
 )
 
 ESTIMATORS = "mis:plane-t1t2+planes"
@@ -77,6 +78,7 @@ def test_bundled_names_only():
 # --------------------------------------------------------------------------- in a browser
 @pytest.fixture(scope="module")
 def server():
+    warm_up(ESTIMATORS.split(","))
     with Server(*SERVE) as s:
         yield s
 

@@ -20,7 +20,7 @@ import urllib.request
 
 import numpy as np
 import pytest
-from web_support import READY_TIMEOUT, Server
+from web_support import READY_TIMEOUT, Server, warm_up
 
 SESSIONS = 10
 SECONDS = 60.0
@@ -83,6 +83,7 @@ async def student(i: int, ws_url: str, t_end_box: list, out: dict) -> None:
 
 @pytest.mark.slow
 def test_ten_sessions_for_a_minute():
+    warm_up(["planes"], photons=2000)
     with Server("--max-sessions", str(SESSIONS), "--spare", "0") as server:
         paths = [new_session(server.url) for _ in range(SESSIONS)]
         ws = [f"ws://127.0.0.1:{server.port}{p}ws" for p in paths]

@@ -36,6 +36,22 @@ CHROME_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
 READY_TIMEOUT = 420.0
 
 
+def warm_up(specs, scene: str = "area.toml", photons: int = 200) -> None:
+    """Compile (or load from numba's on-disk cache) the kernels of ``specs`` here, once,
+    before sessions start: two session processes compiling the same cold kernels at once
+    on a busy 2-core machine take minutes; afterwards each loads them in about a second."""
+    from psurf_core import load_scene, parse_estimator
+    from psurf_core.inspect import inspect_pixel
+    from psurf_core.render import RenderSettings, render_pass
+
+    sc = load_scene(str(ROOT / "scenes" / scene))
+    settings = RenderSettings(photons=photons, spp=1)
+    for spec in specs:
+        est = parse_estimator(spec, sc)
+        render_pass(sc, est, 0, 0, settings)
+        inspect_pixel(sc, est, 0, 0, (sc.camera.width // 2, sc.camera.height // 2), settings)
+
+
 def free_port() -> int:
     """A TCP port free on 127.0.0.1 now."""
     with socket.socket() as s:
