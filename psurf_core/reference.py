@@ -17,6 +17,8 @@ from the camera (``k = 0``) is not counted (SCENES.md "What an image is").
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from . import sampling
@@ -26,9 +28,31 @@ from .geometry import Blockers, blockers_of, ray_box, ray_parallelogram
 from .scene import AreaLight, MeshLight, PointLight, Scene
 from .trace import roulette_survival, trace_depth
 
-#: Strategies of :func:`reference_pass`: balance-heuristic MIS, light sampling only, or
-#: phase-sampled emitter hits only (point lights always use NEE: a delta cannot be hit).
-STRATEGIES = ("mis", "nee", "phase")
+#: Direct-light techniques of each strategy of :func:`reference_pass` (combined by the
+#: balance heuristic): NEE at free-flight vertices, phase-sampled emitter hits, equiangular
+#: vertices. Point lights cannot be hit: without NEE or equiangular they use NEE.
+_TECHNIQUES = {
+    "mis": ("nee", "phase", "equiangular"),
+    "mis-unguided": ("nee", "phase", "equiangular"),
+    "mis-free-flight": ("nee", "phase"),
+    "nee": ("nee",),
+    "phase": ("phase",),
+    "equiangular": ("equiangular",),
+}
+
+#: Strategies whose scattering directions are drawn from the defensive mixture of the phase
+#: function and :func:`_sample_guided` (all others sample the phase function alone).
+_GUIDED = ("mis",)
+
+#: Probability of sampling the phase function in the guided mixture (the rest: towards a
+#: light); it bounds every direction weight ``rho / p`` by ``1 / GUIDE_PHASE``.
+GUIDE_PHASE = 0.5
+
+#: Strategies of :func:`reference_pass`.
+STRATEGIES = tuple(_TECHNIQUES)
+
+#: Below this rate the guided lobe is sampled as uniform in the polar angle (its limit).
+_LAM_MIN = 1e-9
 
 #: Ray x triangle elements per chunk of the emitter-mesh test.
 _TRI_CHUNK = 1 << 18
@@ -83,113 +107,363 @@ def _ray_mesh(o: np.ndarray, d: np.ndarray, tris: np.ndarray):
     return best_t, best_k
 
 
-def _nee(scene, x, w_cur, beta, rng, blockers, strategy):
-    """Next-event estimate at scattering vertices (one light chosen by power per vertex).
+@dataclass(frozen=True)
+class _Use:
+    """Which direct-light techniques run for one kind of light.
 
-    Parameters
-    ----------
-    x, w_cur : (M, 3) float
-        Vertices and the backward (camera-to-vertex) direction that reached them.
-    beta : (M,) float
-        Grey path throughput up to and including the scattering at ``x`` (``ss/st``).
-
-    Returns
-    -------
-    (M, 3) float
-        Radiance contribution towards the camera (RGB).
+    ``nee``: a light point by area at a free-flight vertex; ``phase``: the scattering
+    direction sampled at a free-flight vertex hits an emitter; ``ea``: an equiangular vertex
+    on the segment about a light point chosen by area, then a shadow ray to that point.
     """
-    m = x.shape[0]
-    med = scene.medium
+
+    nee: bool
+    phase: bool
+    ea: bool
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What a strategy does: techniques for area/mesh lights and for point lights (a delta
+    cannot be hit by a sampled direction, so without NEE or equiangular it falls back to NEE),
+    and the light centres the guided directions aim at (``None``: phase sampling only)."""
+
+    area: _Use
+    point: _Use
+    centres: np.ndarray | None
+
+    @classmethod
+    def of(cls, scene: Scene, strategy: str) -> _Plan:
+        tech = _TECHNIQUES[strategy]
+        area = _Use("nee" in tech, "phase" in tech, "equiangular" in tech)
+        point = _Use(area.nee or not area.ea, False, area.ea)
+        return cls(area, point, _light_centres(scene) if strategy in _GUIDED else None)
+
+
+@dataclass
+class _LightPoints:
+    """Points on the lights (sampled, or where a sampled direction hit an emitter).
+
+    Attributes
+    ----------
+    y : (M, 3) float
+        Point on the light (the position of a point light).
+    le : (M, 3) float
+        Radiance (area, mesh; 0 on an emitter's back side) or intensity (point).
+    normal : (M, 3) float
+        Emitting-side unit normal (zero for a point light).
+    p_area : (M,) float
+        Density of NEE's light point per unit area there, ``P_L / A_L`` (the probability
+        ``P_L`` for a point light).
+    point : (M,) bool
+        Point light.
+    """
+
+    y: np.ndarray
+    le: np.ndarray
+    normal: np.ndarray
+    p_area: np.ndarray
+    point: np.ndarray
+
+    @classmethod
+    def empty(cls, m: int) -> _LightPoints:
+        return cls(np.zeros((m, 3)), np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m),
+                   np.zeros(m, dtype=bool))
+
+    def take(self, idx: np.ndarray) -> _LightPoints:
+        return _LightPoints(self.y[idx], self.le[idx], self.normal[idx], self.p_area[idx],
+                            self.point[idx])
+
+
+def _sample_light_points(scene: Scene, rng: np.random.Generator, m: int) -> _LightPoints:
+    """``m`` light points: light ``L`` with probability ``P_L`` (power), then uniform by area."""
     pmf = scene.light_pmf
     choice = sampling.sample_discrete(pmf, rng, m)
-    x_l = np.zeros((m, 3))
-    le = np.zeros((m, 3))  # radiance (area/mesh) or intensity (point)
-    cos_l = np.ones(m)  # cosine at the light (1 for points)
-    area = np.zeros(m)  # total emitting area of the chosen light (0 marks a point light)
+    lp = _LightPoints.empty(m)
     for li, lt in enumerate(scene.lights):
         sel = np.flatnonzero(choice == li)
         if sel.size == 0:
             continue
         if isinstance(lt, PointLight):
-            x_l[sel] = lt.position
-            le[sel] = lt.intensity
+            lp.y[sel] = lt.position
+            lp.le[sel] = lt.intensity
+            lp.p_area[sel] = pmf[li]
+            lp.point[sel] = True
         elif isinstance(lt, AreaLight):
             uv = rng.random((sel.size, 2))
-            x_l[sel] = lt.corner + uv[:, :1] * lt.edge_u + uv[:, 1:] * lt.edge_v
-            le[sel] = lt.radiance
-            cos_l[sel] = _dot(x[sel] - x_l[sel], np.broadcast_to(lt.normal, (sel.size, 3)))
-            area[sel] = lt.area
+            lp.y[sel] = lt.corner + uv[:, :1] * lt.edge_u + uv[:, 1:] * lt.edge_v
+            lp.le[sel] = lt.radiance
+            lp.normal[sel] = lt.normal
+            lp.p_area[sel] = pmf[li] / lt.area
         elif isinstance(lt, MeshLight):
-            k = sampling.sample_discrete(lt.areas / lt.area, rng, sel.size)
+            areas = lt.areas
+            k = sampling.sample_discrete(areas / areas.sum(), rng, sel.size)
             b = sampling.sample_triangle_barycentric(rng, sel.size)
             v0, v1, v2 = (lt.triangles[k, i] for i in range(3))
-            x_l[sel] = v0 + b[:, :1] * (v1 - v0) + b[:, 1:] * (v2 - v0)
-            le[sel] = lt.radiance
-            cos_l[sel] = _dot(x[sel] - x_l[sel], lt.normals[k])
-            area[sel] = lt.area
+            lp.y[sel] = v0 + b[:, :1] * (v1 - v0) + b[:, 1:] * (v2 - v0)
+            lp.le[sel] = lt.radiance
+            lp.normal[sel] = lt.normals[k]
+            lp.p_area[sel] = pmf[li] / areas.sum()
         else:  # pragma: no cover - the scene loader admits no other light
             raise TypeError(f"unknown light {lt!r}")
-    v = x_l - x
-    r2 = _dot(v, v)
-    r = np.sqrt(r2)
-    is_point = area == 0.0
+    return lp
+
+
+# --------------------------------------------------------------------------- guided directions
+def _light_centres(scene: Scene) -> np.ndarray:
+    """(L, 3) the point each light's guided lobe aims at: a point light's position, a
+    parallelogram's centre, a mesh's area-weighted triangle centroid."""
+    out = []
+    for lt in scene.lights:
+        if isinstance(lt, PointLight):
+            out.append(lt.position)
+        elif isinstance(lt, AreaLight):
+            out.append(lt.corner + 0.5 * (lt.edge_u + lt.edge_v))
+        else:
+            a = lt.areas
+            out.append((lt.triangles.mean(axis=1) * a[:, None]).sum(axis=0) / a.sum())
+    return np.array(out, dtype=float).reshape(-1, 3)
+
+
+def _guide_frame(st: float, centre: np.ndarray, x: np.ndarray):
+    """Axis (unit direction from ``x`` (M, 3) to ``centre``; +z where they coincide) and the
+    rate ``lam = st |centre - x|`` of the guided lobe about it."""
+    v = centre - x
+    d = np.sqrt(_dot(v, v))
+    axis = np.where((d > 0)[:, None], v / np.where(d > 0, d, 1.0)[:, None], (0.0, 0.0, 1.0))
+    return axis, st * d
+
+
+def _sample_guided(scene: Scene, centres: np.ndarray, x: np.ndarray,
+                   rng: np.random.Generator) -> np.ndarray:
+    """Directions aimed at the lights (a light by power, then a lobe about its centre).
+
+    The polar angle ``theta`` about the direction to the centre has density
+    ``lam exp(-lam theta) / (1 - exp(-lam pi))`` on ``[0, pi]`` (``lam = st d``, ``d`` the
+    distance to the centre; uniform as ``lam -> 0``), the azimuth is uniform. Why this shape:
+    the direct light gathered along a segment leaving ``x`` at a small angle ``theta`` to a
+    small light is about ``pi / (d theta)`` (the equiangular integral of ``1 / r^2``) times
+    ``exp(-st d theta)`` (the detour's extra transmittance); per unit solid angle
+    ``sin theta dtheta dphi`` that is proportional to this density.
+
+    Returns
+    -------
+    (M, 3) float
+        Unit directions.
+    """
+    m = x.shape[0]
+    choice = sampling.sample_discrete(scene.light_pmf, rng, m)
+    axis, lam = _guide_frame(scene.medium.sigma_t, centres[choice], x)
+    u = rng.random(m)
     with np.errstate(divide="ignore", invalid="ignore"):
-        cos_l = np.where(is_point, 1.0, cos_l / r)  # one-sided: > 0 only on the front
-        rho = sampling.phase_value(_dot(v, w_cur) / r, med.phase.g)
-    p_l = pmf[choice]
-    live = (r > 0) & (cos_l > 0)
-    if strategy == "phase":
-        live &= is_point  # area/mesh light is left to the phase-sampled hits
-    idx = np.flatnonzero(live)
-    idx = idx[~blockers.occluded(x[idx], x_l[idx])]
-    out = np.zeros((m, 3))
-    if idx.size == 0:
-        return out
-    base = beta[idx] * rho[idx] * np.exp(-med.sigma_t * r[idx])
-    ca = cos_l[idx] * area[idx]
-    pt = is_point[idx]
-    # Solid-angle pdfs times cos_L: NEE p_l r^2 / A, phase rho cos_L. The product form keeps
-    # the balance-heuristic weight finite as cos_L -> 0 or r -> 0.
-    if strategy == "mis":
-        denom = np.where(pt, p_l[idx] * r2[idx], p_l[idx] * r2[idx] + rho[idx] * ca)
-    else:
-        denom = p_l[idx] * r2[idx]
-    out[idx] = (base * np.where(pt, 1.0, ca) / denom)[:, None] * le[idx]
+        th = np.where(lam > _LAM_MIN, -np.log1p(u * np.expm1(-lam * np.pi)) / lam, np.pi * u)
+    return sampling.direction_about(axis, np.cos(th), 2.0 * np.pi * rng.random(m))
+
+
+def _guided_pdf(scene: Scene, centres: np.ndarray, x: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Solid-angle density (1/sr) of :func:`_sample_guided` at unit directions ``w`` (M, 3)
+    leaving ``x`` (M, 3): the light mixture of ``p(theta) / (2 pi sin theta)``."""
+    pmf = scene.light_pmf
+    out = np.zeros(x.shape[0])
+    for li in range(centres.shape[0]):
+        axis, lam = _guide_frame(scene.medium.sigma_t, centres[li], x)
+        sin = np.linalg.norm(np.cross(w, axis), axis=1)
+        th = np.arctan2(sin, _dot(w, axis))
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            p_th = np.where(lam > _LAM_MIN, lam * np.exp(-lam * th) / -np.expm1(-lam * np.pi),
+                            1.0 / np.pi)
+            out += pmf[li] * p_th / (2.0 * np.pi * sin)
     return out
 
 
+def _direction_pdf(scene: Scene, plan: _Plan, x, w_in, w) -> tuple[np.ndarray, np.ndarray]:
+    """Phase value ``rho(w_in . w)`` and the density the strategy samples scattering
+    directions ``w`` with at ``x``: ``rho`` itself, or the defensive mixture
+    ``GUIDE_PHASE rho + (1 - GUIDE_PHASE) p_guided``."""
+    rho = sampling.phase_value(_dot(w_in, w), scene.medium.phase.g)
+    if plan.centres is None:
+        return rho, rho
+    p = GUIDE_PHASE * rho + (1.0 - GUIDE_PHASE) * _guided_pdf(scene, plan.centres, x, w)
+    return rho, p
+
+
+def _scatter(scene: Scene, plan: _Plan, x, w_in, rng):
+    """Sample the scattering direction at vertices ``x`` reached along ``w_in``.
+
+    Returns
+    -------
+    w : (M, 3) float
+        New propagation directions.
+    p : (M,) float
+        Their solid-angle density.
+    weight : (M,) float
+        ``rho / p`` (1 for phase sampling alone; at most ``1 / GUIDE_PHASE`` guided).
+    """
+    g = scene.medium.phase.g
+    if plan.centres is None:
+        w = sampling.sample_phase(w_in, g, rng)
+        rho = sampling.phase_value(_dot(w_in, w), g)
+        return w, rho, np.ones(x.shape[0])
+    phase = rng.random(x.shape[0]) < GUIDE_PHASE
+    w = np.empty_like(w_in)
+    w[phase] = sampling.sample_phase(w_in[phase], g, rng)
+    w[~phase] = _sample_guided(scene, plan.centres, x[~phase], rng)
+    rho, p = _direction_pdf(scene, plan, x, w_in, w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        weight = np.where(p > 0, rho / p, 0.0)
+    return w, p, weight
+
+
+# --------------------------------------------------------------------------- direct light
+def _equiangular_frame(o, w, t_end, y):
+    """Where light points sit relative to segments ``o + t w``, ``0 <= t <= t_end``.
+
+    Returns
+    -------
+    delta, h : (M,) float
+        Distance along ``w`` to the foot of the perpendicular from ``y``, and its length.
+    th_a, th_b : (M,) float
+        Angles (at ``y``, from the perpendicular) of the segment's ends: the equiangular
+        density on the segment is ``h / ((th_b - th_a) (h^2 + (t - delta)^2))``.
+    """
+    v = y - o
+    delta = _dot(v, w)
+    h = np.sqrt(np.clip(_dot(v, v) - delta * delta, 0.0, None))
+    return delta, h, np.arctan2(-delta, h), np.arctan2(t_end - delta, h)
+
+
+def _direct(scene, plan, by, w, t, t_end, frame, x, lp, beta):
+    """Balance-heuristic contribution of direct-light samples of segments (no visibility).
+
+    A sample is a vertex at distance ``t`` on a segment (arriving along ``w``) and a point
+    ``y`` on a light, in the measure ``dt dA(y)`` shared by the three techniques. Their
+    densities, each multiplied by ``r^2 / Tr(t)`` (``r = |y - x|``, ``Tr(t) = exp(-st t)``)
+    so that no term is singular or underflows:
+
+    * NEE at a free-flight vertex: ``p_ff(t) p_A r^2 / Tr = st p_A r^2``,
+    * a scattering direction sampled at a free-flight vertex hits ``y``:
+      ``p_ff(t) p_w cos_L / Tr = st p_w cos_L`` (``p_w``: the direction density, the phase
+      function or the guided mixture),
+    * an equiangular vertex about ``y``, with ``y`` by area: ``p_A h / ((th_b - th_a) Tr)``.
+
+    The integrand times the same factor is ``beta ss rho cos_L exp(-st r) Le``, so with
+    phase-sampled directions and NEE or the phase technique enabled, every contribution is
+    at most ``beta (ss / st) Le``: bounded, whatever the geometry.
+
+    Parameters
+    ----------
+    plan : _Plan
+    by : {'nee', 'phase', 'ea'}
+        The technique that drew the samples (contributions are 0 where it is not enabled).
+    w : (M, 3) float
+        Unit direction of each segment.
+    t, t_end : (M,) float
+        Vertex distance along the segment and the segment's free length.
+    frame : tuple of (M,) float
+        :func:`_equiangular_frame` of ``lp.y`` on the segments.
+    x : (M, 3) float
+        The vertices ``o + t w``.
+    lp : _LightPoints
+    beta : (M,) float
+        Path throughput at the segment's origin (before this segment's free flight).
+
+    Returns
+    -------
+    (M, 3) float
+        Radiance towards the camera (RGB).
+    """
+    _, h, th_a, th_b = frame
+    st = scene.medium.sigma_t
+    v = lp.y - x
+    r2 = _dot(v, v)
+    r = np.sqrt(r2)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        u = v / r[:, None]
+        # One-sided emitters: cos_L > 0 on the front only; 1 for point lights.
+        cos_l = np.where(lp.point, 1.0, -_dot(u, lp.normal))
+        rho, p_w = _direction_pdf(scene, plan, x, w, u)
+        ea_term = lp.p_area * h / (th_b - th_a) * np.exp(st * t)
+    on = {name: np.where(lp.point, getattr(plan.point, name), getattr(plan.area, name))
+          for name in ("nee", "phase", "ea")}
+    denom = np.where(on["nee"], st * lp.p_area * r2, 0.0)
+    denom += np.where(on["phase"], st * p_w * cos_l, 0.0)
+    denom += np.where(on["ea"] & (th_b > th_a), ea_term, 0.0)
+    live = on[by] & (r > 0) & (cos_l > 0) & (denom > 0) & (t >= 0) & (t < t_end)
+    j = np.flatnonzero(live)
+    out = np.zeros((r.size, 3))
+    val = beta[j] * scene.medium.sigma_s * rho[j] * cos_l[j] * np.exp(-st * r[j]) / denom[j]
+    out[j] = val[:, None] * lp.le[j]
+    return out
+
+
+def _shadowed(out, x, y, blockers):
+    """Zero the contributions (M, 3) whose shadow segment ``x -> y`` is blocked."""
+    idx = np.flatnonzero(np.any(out > 0, axis=1))
+    out[idx[blockers.occluded(x[idx], y[idx])]] = 0.0
+    return out
+
+
+def _nee(scene, plan, w, t_end, t, x, beta, rng, blockers):
+    """Next-event estimates at free-flight vertices ``x`` (M, 3), reached at distance ``t``
+    along segments of direction ``w`` and free length ``t_end``; ``beta`` is the throughput
+    at the segments' origins. Returns (M, 3)."""
+    lp = _sample_light_points(scene, rng, x.shape[0])
+    frame = _equiangular_frame(x - t[:, None] * w, w, t_end, lp.y)
+    return _shadowed(_direct(scene, plan, "nee", w, t, t_end, frame, x, lp, beta), x, lp.y,
+                     blockers)
+
+
+def _equiangular(scene, plan, o, w, t_end, beta, rng, blockers):
+    """Equiangular direct-light samples, one per segment (Kulla and Fajardo 2012).
+
+    A light point ``y`` is chosen by power and area, then a distance on the segment with
+    density proportional to ``1 / |o + t w - y|^2``: vertices land where the light is close,
+    whatever the free-flight density says. Drawn for every segment, whether or not its free
+    flight produced a vertex. Returns (M, 3).
+    """
+    m = o.shape[0]
+    lp = _sample_light_points(scene, rng, m)
+    frame = delta, h, th_a, th_b = _equiangular_frame(o, w, t_end, lp.y)
+    th = th_a + rng.random(m) * (th_b - th_a)
+    t = np.clip(delta + h * np.tan(th), 0.0, t_end)
+    x = o + t[:, None] * w
+    return _shadowed(_direct(scene, plan, "ea", w, t, t_end, frame, x, lp, beta), x, lp.y,
+                     blockers)
+
+
 def _emitter_hits(scene, x, w):
-    """Nearest front- or back-side hit of phase-sampled rays with any area or mesh light.
+    """Nearest front- or back-side hit of sampled directions with any area or mesh light.
 
     Returns
     -------
     t : (M,) float
         Hit distance (``inf`` on a miss).
-    le, cos_area_over_pl : (M, 3), (M,) float
-        Radiance of the hit light (0 on its back side or a miss), and ``cos_L A / P_L``
-        (``A``: that light's total area, so ``P_L / A`` is NEE's area density).
+    lp : _LightPoints
+        The hit points, their light's radiance (0 on a back side or a miss), normal and
+        ``P_L / A_L`` (what NEE's and equiangular sampling's densities need there).
     """
     m = x.shape[0]
     pmf = scene.light_pmf
     t_best = np.full(m, np.inf)
-    le = np.zeros((m, 3))
-    cap = np.zeros(m)
+    lp = _LightPoints.empty(m)
     for li, lt in enumerate(scene.lights):
         if isinstance(lt, AreaLight):
             t = ray_parallelogram(x, w, lt.corner, lt.edge_u, lt.edge_v)
             t = np.where(t > SHADOW_EPS, t, np.inf)
-            cos = -(w @ lt.normal)
+            nrm = np.broadcast_to(lt.normal, (m, 3))
         elif isinstance(lt, MeshLight):
             t, k = _ray_mesh(x, w, lt.triangles)
-            cos = -_dot(w, lt.normals[np.maximum(k, 0)])
+            nrm = lt.normals[np.maximum(k, 0)]
         else:
             continue
         near = t < t_best
         t_best = np.where(near, t, t_best)
-        front = near & (cos > 0)
-        le[near] = np.where(front[near, None], lt.radiance, 0.0)
-        cap[near] = np.where(front[near], cos[near] * lt.area / pmf[li], 0.0)
-    return t_best, le, cap
+        front = near & (_dot(w, nrm) < 0)
+        lp.le[near] = np.where(front[near, None], lt.radiance, 0.0)
+        lp.normal[near] = nrm[near]
+        lp.p_area[near] = pmf[li] / lt.area
+    hit = np.isfinite(t_best)
+    lp.y[hit] = x[hit] + t_best[hit, None] * w[hit]
+    return t_best, lp
 
 
 def reference_pass(
@@ -212,11 +486,17 @@ def reference_pass(
     rays : Rays
         N camera rays; the medium part of ray ``i`` is ``[s_min[i], s_max[i]]``.
     rng : numpy.random.Generator
+        Every random number of the pass comes from it (same state, same estimate).
     blockers : Blockers, optional
         ``blockers_of(scene)`` (pass it to avoid rebuilding).
-    strategy : {'mis', 'nee', 'phase'}
-        Balance heuristic of light sampling and phase-sampled emitter hits, or one of them
-        alone (all unbiased; 'nee' alone has infinite variance near area/mesh emitters).
+    strategy : str
+        One of :data:`STRATEGIES` (all unbiased): ``'mis'`` (the default: NEE, emitter hits
+        of the sampled directions and equiangular vertices by the balance heuristic, with
+        guided scattering directions), ``'mis-unguided'`` (the same with phase-sampled
+        directions), ``'mis-free-flight'`` (NEE and phase-sampled hits at free-flight
+        vertices only: the reference before issue 15), or one technique alone with
+        phase-sampled directions, ``'nee'``, ``'phase'`` or ``'equiangular'`` ('nee' alone
+        has infinite variance near area/mesh emitters).
 
     Returns
     -------
@@ -227,54 +507,59 @@ def reference_pass(
         raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
     blockers = blockers_of(scene) if blockers is None else blockers
     med = scene.medium
-    st, g, alb = med.sigma_t, med.phase.g, med.albedo
+    st, alb = med.sigma_t, med.albedo
     k_max = trace_depth(scene)
-    # Phase-sampled emitter hits matter only with area/mesh lights and a phase strategy.
-    hits = strategy != "nee" and any(not isinstance(lt, PointLight) for lt in scene.lights)
-    n = len(rays)
-    out = np.zeros((n, 3))
+    plan = _Plan.of(scene, strategy)
+    points = any(isinstance(lt, PointLight) for lt in scene.lights)
+    nee = plan.area.nee or (plan.point.nee and points)
+    # Emitter hits of sampled directions matter only with area/mesh lights.
+    hits = plan.area.phase and any(not isinstance(lt, PointLight) for lt in scene.lights)
+    out = np.zeros((len(rays), 3))
 
-    # First vertex: free flight from the box entry; past s_max the path left the box or
-    # met a (black or emitting, not counted at k = 0) surface.
-    s = rays.s_min + sampling.sample_free_flight(st, rng, n)
-    idx = np.flatnonzero(s < rays.s_max)
-    x = rays.o[idx] + s[idx, None] * rays.d[idx]
-    w_cur = rays.d[idx]
-    beta = np.full(idx.size, alb)  # exp(-st t) ss / (st exp(-st t))
+    # Segment 1 is the camera ray's medium part: from the box entry to the exit or the first
+    # (black or emitting, not counted at k = 0) surface. Segment k + 1 leaves vertex k.
+    seg = np.flatnonzero(rays.s_max > rays.s_min)
+    seg_o = rays.o[seg] + rays.s_min[seg, None] * rays.d[seg]
+    seg_w = rays.d[seg]
+    seg_tend = (rays.s_max - rays.s_min)[seg]
+    beta = np.ones(seg.size)  # throughput at the segment's origin
     k = 1
-    while idx.size:
+    while seg.size:
         counts = k >= scene.min_scatter
-        if counts:
-            out[idx] += _nee(scene, x, w_cur, beta, rng, blockers, strategy)
+        if counts and plan.area.ea:
+            out[seg] += _equiangular(scene, plan, seg_o, seg_w, seg_tend, beta, rng, blockers)
+        t = sampling.sample_free_flight(st, rng, seg.size)
+        go = np.flatnonzero(t < seg_tend)
+        idx, w, tend, t, beta = seg[go], seg_w[go], seg_tend[go], t[go], beta[go]
+        x = seg_o[go] + t[:, None] * w
+        if counts and nee:
+            out[idx] += _nee(scene, plan, w, tend, t, x, beta, rng, blockers)
         if k >= k_max and not (hits and counts):
             break
         # Roulette once per vertex, before sampling its direction (depth only, as trace).
         q = roulette_survival(scene, k)
         if q < 1.0:
             keep = rng.random(idx.size) < q
-            idx, x, w_cur, beta = idx[keep], x[keep], w_cur[keep], beta[keep] / q
-        w_new = sampling.sample_phase(w_cur, g, rng)  # pdf rho(w_new . w_cur), weight 1
+            idx, w, tend, t, beta, x = (a[keep] for a in (idx, w, tend, t, beta, x))
+            beta = beta / q
+        w_new, _, w_weight = _scatter(scene, plan, x, w, rng)
         _, t_box = ray_box(x, w_new, med.bounds_min, med.bounds_max)
-        t_end = np.minimum(t_box, blockers.first_hit(x, w_new))
+        t_next = np.minimum(t_box, blockers.first_hit(x, w_new))
         if hits and counts:
-            t_e, le, cap = _emitter_hits(scene, x, w_new)
+            t_e, lp = _emitter_hits(scene, x, w_new)
             # The emitter is the first surface iff nothing nearer (tolerance for rounding).
-            hit = np.isfinite(t_e) & (t_e <= t_end * (1 + 1e-9) + 1e-12) & (cap > 0)
-            t_end = np.minimum(t_end, t_e)
-            j = np.flatnonzero(hit)
+            j = np.flatnonzero(np.isfinite(t_e) & (t_e <= t_next * (1 + 1e-9) + 1e-12))
             if j.size:
                 # Transmittance analytic: the emitter is inside the (convex) box.
-                wgt = beta[j] * np.exp(-st * t_e[j])
-                if strategy == "mis":
-                    rho = sampling.phase_value(_dot(w_new[j], w_cur[j]), g)
-                    wgt = wgt * rho * cap[j] / (rho * cap[j] + t_e[j] ** 2)
-                out[idx[j]] += wgt[:, None] * le[j]
+                lj = lp.take(j)
+                frame = _equiangular_frame(x[j] - t[j, None] * w[j], w[j], tend[j], lj.y)
+                out[idx[j]] += _direct(scene, plan, "phase", w[j], t[j], tend[j], frame, x[j],
+                                       lj, beta[j])
+            t_next = np.minimum(t_next, t_e)
         if k >= k_max:
             break
-        t = sampling.sample_free_flight(st, rng, idx.size)
-        go = t < t_end
-        idx, w_cur, beta = idx[go], w_new[go], beta[go] * alb
-        x = x[go] + t[go, None] * w_cur
+        seg, seg_o, seg_w, seg_tend = idx, x, w_new, t_next
+        beta = beta * alb * w_weight
         k += 1
     return out
 
