@@ -51,6 +51,10 @@ GUIDE_PHASE = 0.5
 #: Strategies of :func:`reference_pass`.
 STRATEGIES = tuple(_TECHNIQUES)
 
+#: Version of the default sampler, part of a reference checkpoint's identity (a checkpoint
+#: of another sampler must not be resumed: the result would not be any one run's).
+SAMPLER = "mis-equiangular-guided-1"
+
 #: Below this rate the guided lobe is sampled as uniform in the polar angle (its limit).
 _LAM_MIN = 1e-9
 
