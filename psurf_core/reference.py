@@ -17,6 +17,7 @@ from the camera (``k = 0``) is not counted (SCENES.md "What an image is").
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,28 +29,32 @@ from .geometry import Blockers, blockers_of, ray_box, ray_parallelogram
 from .scene import AreaLight, MeshLight, PointLight, Scene
 from .trace import roulette_survival, trace_depth
 
-#: Direct-light techniques of each strategy of :func:`reference_pass` (combined by the
-#: balance heuristic): NEE at free-flight vertices, phase-sampled emitter hits, equiangular
-#: vertices. Point lights cannot be hit: without NEE or equiangular they use NEE.
-_TECHNIQUES = {
-    "mis": ("nee", "phase", "equiangular"),
-    "mis-unguided": ("nee", "phase", "equiangular"),
-    "mis-free-flight": ("nee", "phase"),
-    "nee": ("nee",),
-    "phase": ("phase",),
-    "equiangular": ("equiangular",),
+#: What each strategy of :func:`reference_pass` does: its direct-light techniques (combined
+#: by the balance heuristic: NEE at sampled vertices, emitter hits of sampled directions,
+#: equiangular vertices; point lights cannot be hit, so without NEE or equiangular they use
+#: NEE), whether scattering directions are guided towards the lights (:func:`_scatter`), and
+#: whether the distances to the next vertex are (:func:`_sample_distance`). The default is
+#: ``'mis'``; the others isolate one change each (the diagnosis in the module docstring).
+_STRATEGIES = {
+    "mis": (("nee", "phase", "equiangular"), True, True),
+    "mis-directions": (("nee", "phase", "equiangular"), True, False),
+    "mis-unguided": (("nee", "phase", "equiangular"), False, False),
+    "mis-free-flight": (("nee", "phase"), False, False),
+    "nee": (("nee",), False, False),
+    "phase": (("phase",), False, False),
+    "equiangular": (("equiangular",), False, False),
 }
 
-#: Strategies whose scattering directions are drawn from the defensive mixture of the phase
-#: function and :func:`_sample_guided` (all others sample the phase function alone).
-_GUIDED = ("mis",)
+#: Strategies of :func:`reference_pass`.
+STRATEGIES = tuple(_STRATEGIES)
 
-#: Probability of sampling the phase function in the guided mixture (the rest: towards a
-#: light); it bounds every direction weight ``rho / p`` by ``1 / GUIDE_PHASE``.
+#: Probability of sampling the phase function in the guided direction mixture (the rest:
+#: towards a light); it bounds every direction weight ``rho / p`` by ``1 / GUIDE_PHASE``.
 GUIDE_PHASE = 0.5
 
-#: Strategies of :func:`reference_pass`.
-STRATEGIES = tuple(_TECHNIQUES)
+#: Probability of free flight in the guided distance mixture (the rest: equiangular about a
+#: light centre); it bounds every distance weight ``Tr ss / p`` by ``albedo / GUIDE_FLIGHT``.
+GUIDE_FLIGHT = 0.5
 
 #: Version of the default sampler, part of a reference checkpoint's identity (a checkpoint
 #: of another sampler must not be resumed: the result would not be any one run's).
@@ -127,20 +132,31 @@ class _Use:
 
 @dataclass(frozen=True)
 class _Plan:
-    """What a strategy does: techniques for area/mesh lights and for point lights (a delta
-    cannot be hit by a sampled direction, so without NEE or equiangular it falls back to NEE),
-    and the light centres the guided directions aim at (``None``: phase sampling only)."""
+    """What a strategy does (:data:`_STRATEGIES`).
+
+    Attributes
+    ----------
+    area, point : _Use
+        Direct-light techniques for area/mesh lights and for point lights (a delta cannot be
+        hit by a sampled direction, so without NEE or equiangular it falls back to NEE).
+    centres : (L, 3) float
+        The point of each light that guided directions and distances aim at.
+    directions, distances : bool
+        Guided scattering directions; guided distances to the next vertex.
+    """
 
     area: _Use
     point: _Use
-    centres: np.ndarray | None
+    centres: np.ndarray
+    directions: bool
+    distances: bool
 
     @classmethod
     def of(cls, scene: Scene, strategy: str) -> _Plan:
-        tech = _TECHNIQUES[strategy]
+        tech, directions, distances = _STRATEGIES[strategy]
         area = _Use("nee" in tech, "phase" in tech, "equiangular" in tech)
         point = _Use(area.nee or not area.ea, False, area.ea)
-        return cls(area, point, _light_centres(scene) if strategy in _GUIDED else None)
+        return cls(area, point, _light_centres(scene), directions, distances)
 
 
 @dataclass
@@ -284,7 +300,7 @@ def _direction_pdf(scene: Scene, plan: _Plan, x, w_in, w) -> tuple[np.ndarray, n
     directions ``w`` with at ``x``: ``rho`` itself, or the defensive mixture
     ``GUIDE_PHASE rho + (1 - GUIDE_PHASE) p_guided``."""
     rho = sampling.phase_value(_dot(w_in, w), scene.medium.phase.g)
-    if plan.centres is None:
+    if not plan.directions:
         return rho, rho
     p = GUIDE_PHASE * rho + (1.0 - GUIDE_PHASE) * _guided_pdf(scene, plan.centres, x, w)
     return rho, p
@@ -303,7 +319,7 @@ def _scatter(scene: Scene, plan: _Plan, x, w_in, rng):
         ``rho / p`` (1 for phase sampling alone; at most ``1 / GUIDE_PHASE`` guided).
     """
     g = scene.medium.phase.g
-    if plan.centres is None:
+    if not plan.directions:
         w = sampling.sample_phase(w_in, g, rng)
         rho = sampling.phase_value(_dot(w_in, w), g)
         return w, rho, np.ones(x.shape[0])
@@ -315,6 +331,72 @@ def _scatter(scene: Scene, plan: _Plan, x, w_in, rng):
     with np.errstate(divide="ignore", invalid="ignore"):
         weight = np.where(p > 0, rho / p, 0.0)
     return w, p, weight
+
+
+# --------------------------------------------------------------------------- guided distances
+def _centre_frames(plan: _Plan, o, w, t_end):
+    """:func:`_equiangular_frame` of every light centre on the segments (one tuple per
+    light); ``h`` is kept away from 0 (a segment through a centre: a measure-zero event)."""
+    frames = []
+    for c in plan.centres:
+        delta, h, _, _ = _equiangular_frame(o, w, t_end, np.broadcast_to(c, o.shape))
+        h = np.maximum(h, 1e-12)
+        frames.append((delta, h, np.arctan2(-delta, h), np.arctan2(t_end - delta, h)))
+    return frames
+
+
+def _distance_density(scene: Scene, plan: _Plan, o, w, t_end, t) -> np.ndarray:
+    """Density of :func:`_sample_distance` at distances ``t`` (M,) of segments ``o + t w``
+    with free length ``t_end``, divided by the transmittance ``exp(-st t)`` (``st`` for free
+    flight alone): what the vertex techniques' MIS densities and the distance weight
+    ``ss / density`` need, without overflow or underflow of either factor."""
+    st = scene.medium.sigma_t
+    if not plan.distances:
+        return np.full(np.shape(t), st)
+    ea = np.zeros(np.shape(t))
+    for p_l, (delta, h, th_a, th_b) in zip(scene.light_pmf, _centre_frames(plan, o, w, t_end),
+                                           strict=True):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = h / ((th_b - th_a) * (h * h + (t - delta) ** 2))
+        ea += p_l * np.where(th_b > th_a, p, 0.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return GUIDE_FLIGHT * st + (1.0 - GUIDE_FLIGHT) * np.where(ea > 0, ea * np.exp(st * t),
+                                                                     0.0)
+
+
+def _sample_distance(scene: Scene, plan: _Plan, o, w, t_end, rng):
+    """The distance to the next vertex on each segment.
+
+    Free flight (density ``st exp(-st t)``; a vertex only where ``t < t_end``), or, guided,
+    the defensive mixture of free flight and equiangular sampling about a light centre
+    (light by power): a path heading for a light can then reach it in one step, carrying
+    the transmittance in its weight, instead of reaching it only by the rare free flights
+    that happen to be long (whose weight ignores the transmittance).
+
+    Returns
+    -------
+    t : (M,) float
+        Distances (``>= t_end``: no vertex, the path leaves the segment).
+    density : (M,) float
+        :func:`_distance_density` at ``t``.
+    """
+    st = scene.medium.sigma_t
+    m = o.shape[0]
+    if not plan.distances:
+        return sampling.sample_free_flight(st, rng, m), np.full(m, st)
+    flight = rng.random(m) < GUIDE_FLIGHT
+    t = np.empty(m)
+    t[flight] = sampling.sample_free_flight(st, rng, int(flight.sum()))
+    ea = np.flatnonzero(~flight)
+    choice = sampling.sample_discrete(scene.light_pmf, rng, ea.size)
+    u = rng.random(ea.size)
+    frames = _centre_frames(plan, o[ea], w[ea], t_end[ea])
+    for li, (delta, h, th_a, th_b) in enumerate(frames):
+        sel = choice == li
+        t[ea[sel]] = np.clip(delta[sel] + h[sel] * np.tan(th_a[sel] + u[sel] * (th_b[sel]
+                                                                                - th_a[sel])),
+                             0.0, t_end[ea[sel]])
+    return t, _distance_density(scene, plan, o, w, t_end, t)
 
 
 # --------------------------------------------------------------------------- direct light
@@ -335,23 +417,25 @@ def _equiangular_frame(o, w, t_end, y):
     return delta, h, np.arctan2(-delta, h), np.arctan2(t_end - delta, h)
 
 
-def _direct(scene, plan, by, w, t, t_end, frame, x, lp, beta):
+def _direct(scene, plan, by, w, t, t_end, frame, dens, x, lp, beta):
     """Balance-heuristic contribution of direct-light samples of segments (no visibility).
 
     A sample is a vertex at distance ``t`` on a segment (arriving along ``w``) and a point
     ``y`` on a light, in the measure ``dt dA(y)`` shared by the three techniques. Their
     densities, each multiplied by ``r^2 / Tr(t)`` (``r = |y - x|``, ``Tr(t) = exp(-st t)``)
-    so that no term is singular or underflows:
+    so that no term is singular or underflows (``p_t``: the density the path's next vertex
+    is sampled with, :func:`_sample_distance`; ``dens = p_t / Tr``, ``st`` for free flight):
 
-    * NEE at a free-flight vertex: ``p_ff(t) p_A r^2 / Tr = st p_A r^2``,
-    * a scattering direction sampled at a free-flight vertex hits ``y``:
-      ``p_ff(t) p_w cos_L / Tr = st p_w cos_L`` (``p_w``: the direction density, the phase
-      function or the guided mixture),
+    * NEE at the path's vertex: ``p_t(t) p_A r^2 / Tr = dens p_A r^2``,
+    * the scattering direction sampled at the path's vertex hits ``y``:
+      ``dens p_w cos_L`` (``p_w``: the direction density, the phase function or the guided
+      mixture, :func:`_direction_pdf`),
     * an equiangular vertex about ``y``, with ``y`` by area: ``p_A h / ((th_b - th_a) Tr)``.
 
-    The integrand times the same factor is ``beta ss rho cos_L exp(-st r) Le``, so with
-    phase-sampled directions and NEE or the phase technique enabled, every contribution is
-    at most ``beta (ss / st) Le``: bounded, whatever the geometry.
+    The integrand times the same factor is ``beta ss rho cos_L exp(-st r) Le``, so wherever
+    NEE or the hit technique is enabled every contribution is at most
+    ``beta (ss / st) Le / (GUIDE_FLIGHT GUIDE_PHASE)`` (without the guided mixtures,
+    ``beta (ss / st) Le``): bounded, whatever the geometry.
 
     Parameters
     ----------
@@ -364,6 +448,8 @@ def _direct(scene, plan, by, w, t, t_end, frame, x, lp, beta):
         Vertex distance along the segment and the segment's free length.
     frame : tuple of (M,) float
         :func:`_equiangular_frame` of ``lp.y`` on the segments.
+    dens : (M,) float
+        :func:`_distance_density` of the segments at ``t``.
     x : (M, 3) float
         The vertices ``o + t w``.
     lp : _LightPoints
@@ -388,8 +474,8 @@ def _direct(scene, plan, by, w, t, t_end, frame, x, lp, beta):
         ea_term = lp.p_area * h / (th_b - th_a) * np.exp(st * t)
     on = {name: np.where(lp.point, getattr(plan.point, name), getattr(plan.area, name))
           for name in ("nee", "phase", "ea")}
-    denom = np.where(on["nee"], st * lp.p_area * r2, 0.0)
-    denom += np.where(on["phase"], st * p_w * cos_l, 0.0)
+    denom = np.where(on["nee"], dens * lp.p_area * r2, 0.0)
+    denom += np.where(on["phase"], dens * p_w * cos_l, 0.0)
     denom += np.where(on["ea"] & (th_b > th_a), ea_term, 0.0)
     live = on[by] & (r > 0) & (cos_l > 0) & (denom > 0) & (t >= 0) & (t < t_end)
     j = np.flatnonzero(live)
@@ -406,14 +492,15 @@ def _shadowed(out, x, y, blockers):
     return out
 
 
-def _nee(scene, plan, w, t_end, t, x, beta, rng, blockers):
-    """Next-event estimates at free-flight vertices ``x`` (M, 3), reached at distance ``t``
-    along segments of direction ``w`` and free length ``t_end``; ``beta`` is the throughput
-    at the segments' origins. Returns (M, 3)."""
+def _nee(scene, plan, w, t_end, t, dens, x, beta, rng, blockers):
+    """Next-event estimates at the path's vertices ``x`` (M, 3), reached at distance ``t``
+    along segments of direction ``w`` and free length ``t_end`` (``dens``: their
+    :func:`_distance_density`); ``beta`` is the throughput at the segments' origins.
+    Returns (M, 3)."""
     lp = _sample_light_points(scene, rng, x.shape[0])
     frame = _equiangular_frame(x - t[:, None] * w, w, t_end, lp.y)
-    return _shadowed(_direct(scene, plan, "nee", w, t, t_end, frame, x, lp, beta), x, lp.y,
-                     blockers)
+    return _shadowed(_direct(scene, plan, "nee", w, t, t_end, frame, dens, x, lp, beta), x,
+                     lp.y, blockers)
 
 
 def _equiangular(scene, plan, o, w, t_end, beta, rng, blockers):
@@ -430,8 +517,9 @@ def _equiangular(scene, plan, o, w, t_end, beta, rng, blockers):
     th = th_a + rng.random(m) * (th_b - th_a)
     t = np.clip(delta + h * np.tan(th), 0.0, t_end)
     x = o + t[:, None] * w
-    return _shadowed(_direct(scene, plan, "ea", w, t, t_end, frame, x, lp, beta), x, lp.y,
-                     blockers)
+    dens = _distance_density(scene, plan, o, w, t_end, t)
+    return _shadowed(_direct(scene, plan, "ea", w, t, t_end, frame, dens, x, lp, beta), x,
+                     lp.y, blockers)
 
 
 def _emitter_hits(scene, x, w):
@@ -470,6 +558,13 @@ def _emitter_hits(scene, x, w):
     return t_best, lp
 
 
+def _add(out, rays, values, tally, k, technique) -> None:
+    """``out[rays] += values`` (ray indices are unique within a batch), shown to ``tally``."""
+    if tally is not None:
+        tally(k, technique, rays, values)
+    out[rays] += values
+
+
 def reference_pass(
     scene: Scene,
     rays: Rays,
@@ -477,6 +572,7 @@ def reference_pass(
     blockers: Blockers | None = None,
     *,
     strategy: str = "mis",
+    tally: Callable[[int, str, np.ndarray, np.ndarray], None] | None = None,
 ) -> np.ndarray:
     """One path-traced radiance estimate per camera ray.
 
@@ -501,6 +597,11 @@ def reference_pass(
         vertices only: the reference before issue 15), or one technique alone with
         phase-sampled directions, ``'nee'``, ``'phase'`` or ``'equiangular'`` ('nee' alone
         has infinite variance near area/mesh emitters).
+    tally : callable(k, technique, rays, values), optional
+        Sees every batch of direct-light contributions before it is added: the scatter
+        count ``k``, the technique (``'nee'``, ``'phase'``: an emitter hit of a sampled
+        direction, ``'ea'``: an equiangular vertex), the camera-ray indices (M,) and the
+        (M, 3) values (what ``benchmarks/reference_dense.py`` breaks the image down by).
 
     Returns
     -------
@@ -511,7 +612,6 @@ def reference_pass(
         raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
     blockers = blockers_of(scene) if blockers is None else blockers
     med = scene.medium
-    st, alb = med.sigma_t, med.albedo
     k_max = trace_depth(scene)
     plan = _Plan.of(scene, strategy)
     points = any(isinstance(lt, PointLight) for lt in scene.lights)
@@ -531,20 +631,22 @@ def reference_pass(
     while seg.size:
         counts = k >= scene.min_scatter
         if counts and plan.area.ea:
-            out[seg] += _equiangular(scene, plan, seg_o, seg_w, seg_tend, beta, rng, blockers)
-        t = sampling.sample_free_flight(st, rng, seg.size)
+            val = _equiangular(scene, plan, seg_o, seg_w, seg_tend, beta, rng, blockers)
+            _add(out, seg, val, tally, k, "ea")
+        t, dens = _sample_distance(scene, plan, seg_o, seg_w, seg_tend, rng)
         go = np.flatnonzero(t < seg_tend)
-        idx, w, tend, t, beta = seg[go], seg_w[go], seg_tend[go], t[go], beta[go]
+        idx, w, tend, t, dens, beta = (a[go] for a in (seg, seg_w, seg_tend, t, dens, beta))
         x = seg_o[go] + t[:, None] * w
         if counts and nee:
-            out[idx] += _nee(scene, plan, w, tend, t, x, beta, rng, blockers)
+            val = _nee(scene, plan, w, tend, t, dens, x, beta, rng, blockers)
+            _add(out, idx, val, tally, k, "nee")
         if k >= k_max and not (hits and counts):
             break
         # Roulette once per vertex, before sampling its direction (depth only, as trace).
         q = roulette_survival(scene, k)
         if q < 1.0:
             keep = rng.random(idx.size) < q
-            idx, w, tend, t, beta, x = (a[keep] for a in (idx, w, tend, t, beta, x))
+            idx, w, tend, t, dens, beta, x = (a[keep] for a in (idx, w, tend, t, dens, beta, x))
             beta = beta / q
         w_new, _, w_weight = _scatter(scene, plan, x, w, rng)
         _, t_box = ray_box(x, w_new, med.bounds_min, med.bounds_max)
@@ -557,13 +659,15 @@ def reference_pass(
                 # Transmittance analytic: the emitter is inside the (convex) box.
                 lj = lp.take(j)
                 frame = _equiangular_frame(x[j] - t[j, None] * w[j], w[j], tend[j], lj.y)
-                out[idx[j]] += _direct(scene, plan, "phase", w[j], t[j], tend[j], frame, x[j],
-                                       lj, beta[j])
+                val = _direct(scene, plan, "phase", w[j], t[j], tend[j], frame, dens[j], x[j],
+                              lj, beta[j])
+                _add(out, idx[j], val, tally, k, "phase")
             t_next = np.minimum(t_next, t_e)
         if k >= k_max:
             break
         seg, seg_o, seg_w, seg_tend = idx, x, w_new, t_next
-        beta = beta * alb * w_weight
+        # Tr ss / p_t (albedo for free flight alone) times rho / p_w.
+        beta = beta * (med.sigma_s / dens) * w_weight
         k += 1
     return out
 

@@ -318,13 +318,20 @@ def _naive_walk(scene, rays, rng, k_events):
 @pytest.mark.parametrize("k", [2, 3])
 def test_multiple_scatter_matches_naive_walk(k, seed=40):
     """K = 2, 3 (where NEE to a point light is useless as an oracle): MIS reference vs a
-    bounded-weight walk of different construction, with an occluder in the way."""
+    bounded-weight walk of different construction, with an occluder in the way.
+
+    The walk gets eight times the reference's rays: bounded is not light-tailed, and at the
+    reference's count its own standard error understates its error in the occluder's
+    shadow (with 2500 rays one of 48 pixels sat 4.1 standard errors below the truth, which
+    64 x 2500 rays pin down to 3.5 %; measured in issue 15's work).
+    """
     occ = (SphereOccluder(np.array([0.1, 0.35, 0.2]), 0.25),)
     scene = _scene([BIG_AREA], occ, g=0.4, sigma_s=1.2, sigma_a=0.2, kmin=k, kmax=k)
     bl = blockers_of(scene)
     rays = camera_rays(scene, spp=2500, jitter=False, blockers=bl)
     ref = _stats(reference_pass(scene, rays, np.random.default_rng(seed), bl), W * H)
-    naive = _stats(_naive_walk(scene, rays, np.random.default_rng(seed + 1), k), W * H)
+    many = camera_rays(scene, spp=20000, jitter=False, blockers=bl)
+    naive = _stats(_naive_walk(scene, many, np.random.default_rng(seed + 1), k), W * H)
     _assert_agree(*ref, *naive, label=f"K={k}")
 
 
