@@ -17,6 +17,9 @@ Subcommands (every render is deterministic: same arguments, same numbers)::
         one pass of SPP rays per pixel broken down by scatter count and direct-light
         technique (reference_pass's tally): shares of the image, of the dark half's second
         moment, and of the largest 0.1 % contributions
+    python benchmarks/reference_dense.py flags --passes 200 scenes/area.toml ...
+        the share of pixels psurf_core.reliability flags after PASSES reference passes
+        (seed 0) of each scene, as compare would check a reference it renders
 """
 
 from __future__ import annotations
@@ -92,8 +95,9 @@ def report(args) -> None:
     print(f"oracle: paper-full, {int(pf['passes'])} passes, {lit.sum()} lit pixels, median "
           f"relative standard error {np.median(p_se[lit] / p[lit]):.4f}")
     print("| strategy | passes | CPU s/run | mean abs z | abs z > 3 | median pixel / oracle | "
-          "image sum / oracle | flagged | pooled mean abs z | pooled median / oracle |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "image sum / oracle | flagged | mean abs z flagged / not | pooled mean abs z | "
+          "pooled median / oracle |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     by = {}
     for f in sorted(glob.glob(os.path.join(args.runs, "*_*.npz"))):
         by.setdefault(os.path.basename(f).rsplit("_", 1)[0], []).append(f)
@@ -103,17 +107,22 @@ def report(args) -> None:
             d = np.load(f)
             n = int(d["passes"])
             m, se = d["mean"][..., 0], np.sqrt(d["m2"][..., 0] / (n - 1) / n)
-            z = (m - p) / np.sqrt(se**2 + p_se**2)
+            with np.errstate(divide="ignore", invalid="ignore"):  # unlit pixels: 0 / 0
+                z = (m - p) / np.sqrt(se**2 + p_se**2)
             rel = rl.pixel_reliability(n, d["mean"], d["m2"], d["m3"], d["m4"], d["peak"])
+            flag = rel.unreliable & lit
             rows.append((n, float(d["cpu"]), np.abs(z[lit]).mean(), np.mean(np.abs(z[lit]) > 3),
                          np.median(m[lit] / p[lit]), m[lit].sum() / p[lit].sum(),
-                         rel.unreliable[rel.varies].mean()))
+                         rel.unreliable[rel.varies].mean(),
+                         np.abs(z[flag]).mean() if flag.any() else np.nan,
+                         np.abs(z[lit & ~flag]).mean()))
             means.append(m)
             ses.append(se)
         r = np.array(rows)
         mm = np.mean(means, axis=0)
         ss = np.sqrt(np.mean(np.square(ses), axis=0) / len(ses))
-        zp = (mm - p) / np.sqrt(ss**2 + p_se**2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zp = (mm - p) / np.sqrt(ss**2 + p_se**2)
 
         def rng(col, fmt, r=r):
             lo, hi, mid = r[:, col].min(), r[:, col].max(), r[:, col].mean()
@@ -121,7 +130,8 @@ def report(args) -> None:
 
         print(f"| `{strat}` x{len(r)} | {int(r[0, 0])} | {r[:, 1].mean():.0f} | {rng(2, '.2f')} | "
               f"{100 * r[:, 3].mean():.1f} % | {rng(4, '.3f')} | {rng(5, '.4f')} | "
-              f"{100 * r[:, 6].mean():.0f} % | {np.abs(zp[lit]).mean():.2f} | "
+              f"{100 * r[:, 6].mean():.0f} % | {np.nanmean(r[:, 7]):.2f} / {r[:, 8].mean():.2f} | "
+              f"{np.abs(zp[lit]).mean():.2f} | "
               f"{np.median(mm[lit] / p[lit]):.3f} |")
 
 
@@ -142,8 +152,12 @@ def samples(args) -> None:
     in_dark = dark[rays.pixel]
     every = np.concatenate([v for batch in parts.values() for _, v in batch])
     top = np.quantile(every[every > 0], 0.999)
-    print(f"{args.strategy}, {args.res}, {args.spp} rays per pixel: image mean {est.mean():.5f}; "
-          f"the largest 0.1 % of the {np.count_nonzero(every)} non-zero contributions hold "
+    e = est.reshape(-1, args.spp)
+    lit = m > 0
+    relvar = e[lit].var(axis=1, ddof=1) / m[lit] ** 2
+    print(f"{args.strategy}, {args.res}, {args.spp} rays per pixel: image mean {est.mean():.5f}, "
+          f"relative variance per ray of the median lit pixel {np.median(relvar):.1f}; the "
+          f"largest 0.1 % of the {np.count_nonzero(every)} non-zero contributions hold "
           f"{every[every >= top].sum() / every.sum():.1%} of the image")
     print("| K | technique | samples > 0 | share of the image | share of the dark half's "
           "second moment | in the top 0.1 % |")
@@ -156,6 +170,19 @@ def samples(args) -> None:
         vals = np.concatenate([v for _, v in parts[k, tech]])
         print(f"| {k} | {tech} | {np.count_nonzero(vals)} | {per_ray.sum() / est.sum():.3f} | "
               f"{(per_ray[in_dark] ** 2).sum() / second:.3f} | {(vals >= top).sum()} |")
+
+
+def flags(args) -> None:
+    for f in args.scenes:
+        s = load_scene(f)
+        c0 = time.process_time()
+        r = render(s, parse_estimator("reference", s), RenderSettings(), passes=args.passes,
+                   seed=0)
+        sm = rl.summarize(rl.of_accumulator(r.accumulator))
+        print(f"{f}: {args.passes} passes, {time.process_time() - c0:.0f} s CPU, flagged "
+              f"{sm['unreliable']} of {sm['pixels']} ({100 * sm['fraction']:.1f} %), largest "
+              f"skewness of the mean {sm['worst_skew_of_mean']:.2f}, warn: {sm['warn']}",
+              flush=True)
 
 
 def main(argv=None) -> None:
@@ -179,8 +206,12 @@ def main(argv=None) -> None:
     sp.add_argument("--res", default="64x48")
     sp.add_argument("--spp", type=int, default=256)
     sp.add_argument("--strategy", default="mis", choices=ref_mod.STRATEGIES)
+    fl = sub.add_parser("flags")
+    fl.add_argument("--passes", type=int, default=200)
+    fl.add_argument("scenes", nargs="+")
     a = p.parse_args(argv)
-    {"oracle": oracle, "runs": runs, "report": report, "samples": samples}[a.cmd](a)
+    {"oracle": oracle, "runs": runs, "report": report, "samples": samples,
+     "flags": flags}[a.cmd](a)
 
 
 if __name__ == "__main__":
