@@ -281,7 +281,7 @@ def test_compare_cli_prints_the_warning(tiny, tmp_path):
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     argv = ["compare", d / "tiny.toml", "--estimators", "planes", "--time", "0.5",
             "--photons", "200", "--reference", tmp_path / "heavy.npz", "--out", tmp_path / "cli"]
-    r = subprocess.run([sys.executable, "-m", "ui.compare_cli", *map(str, argv)], cwd=tmp_path,
+    r = subprocess.run([sys.executable, str(ROOT / "app.py"), *map(str, argv)], cwd=tmp_path,
                        env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     warn = [ln for ln in r.stderr.splitlines() if ln.startswith("psurf: warning: ")]
