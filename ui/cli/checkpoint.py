@@ -40,6 +40,10 @@ def describe_difference(key: str, saved, current, scene_file: str) -> str:
         return f"a mesh file of {scene_file} changed since the checkpoint was made"
     if key == "resolution":
         return f"the checkpoint is a {saved} image, the scene renders {current}"
+    if key == "reference_sampler":
+        return (f"the checkpoint was rendered by another version of the reference path tracer "
+                f"(sampler {saved or 'before issue 15'}, this psurf's is {current}); render "
+                f"it again without --resume")
     flag = IDENTITY_FLAGS.get(key, key)
 
     def show(v):
@@ -52,7 +56,8 @@ def describe_difference(key: str, saved, current, scene_file: str) -> str:
 class Checkpointer:
     """Keeps a consistent snapshot of the accumulator after every pass and writes it.
 
-    The snapshot (``n``, copies of ``mean`` and ``m2``) is replaced in one assignment, so a
+    The snapshot (a copy of the accumulator: ``n``, ``mean``, ``m2`` and, when it keeps them,
+    the higher moments and peak) is replaced in one assignment, so a
     Ctrl-C that lands anywhere (even inside ``Welford.add`` of the next pass) leaves it
     consistent; the interrupt handler then saves it.
     """
@@ -64,31 +69,30 @@ class Checkpointer:
         self.every = every
         self.seconds_before = seconds_before
         self.extra = extra
-        self.snapshot = (acc.n, acc.mean.copy(), acc.m2.copy(), seconds_before)
+        self.snapshot = (acc.copy(), seconds_before)
         self.on_disk = on_disk  # pass count of the checkpoint file now in DIR (None: none)
         self.last_write = time.monotonic()
 
     @property
     def passes(self) -> int:
-        return self.snapshot[0]
+        return self.snapshot[0].n
 
     def on_pass(self, i, acc, elapsed) -> None:
-        self.snapshot = (acc.n, acc.mean.copy(), acc.m2.copy(), self.seconds_before + elapsed)
+        self.snapshot = (acc.copy(), self.seconds_before + elapsed)
         if time.monotonic() - self.last_write >= self.every:
             self.write()
 
     def write(self) -> bool:
         """Save the snapshot unless the file already holds it (or it has no pass)."""
         from psurf_core import __version__
-        from psurf_core.accumulate import Welford
         from psurf_core.checkpoint import save_checkpoint
 
-        n, mean, m2, seconds = self.snapshot
-        if n == 0 or n == self.on_disk:
+        acc, seconds = self.snapshot
+        if acc.n == 0 or acc.n == self.on_disk:
             return False
-        save_checkpoint(self.directory, Welford(n, mean, m2), self.identity, seconds=seconds,
+        save_checkpoint(self.directory, acc, self.identity, seconds=seconds,
                         version=__version__, extra=self.extra)
-        self.on_disk = n
+        self.on_disk = acc.n
         self.last_write = time.monotonic()
         return True
 

@@ -323,6 +323,8 @@ def run_compare(args) -> int:
     for row in study["results"]:
         for note in row["notes"]:
             print(f"{PROG}: note: {row['estimator']}: {note}", file=sys.stderr)
+    for warning in study.get("warnings", []):
+        print(f"{PROG}: warning: {warning}", file=sys.stderr)
     for p in written:
         print(p)
     return 0

@@ -185,6 +185,10 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
         "min_scatter": np.int64(scene.min_scatter),
         "max_scatter": np.int64(scene.max_scatter),
     }
+    # Pass moments for the reliability check of compare --reference (psurf_core.reliability).
+    from psurf_core.reliability import npz_fields
+
+    data.update(npz_fields(getattr(result, "accumulator", None)))
     data.update(extra or {})
     return data
 
