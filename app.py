@@ -14,7 +14,7 @@ import os
 import sys
 import textwrap
 
-from ui.cli.common import CliError, Parser
+from ui.cli.common import CliError, OutputWriteError, Parser
 from ui.cli.common import load_scene as _load_scene
 from ui.cli.common import nonneg_int as _nonneg_int
 from ui.cli.common import note as _note
@@ -28,6 +28,7 @@ from ui.cli.common import progress as _progress
 from ui.cli.common import write_all as _write_all
 from ui.cli.compare import add_compare_parser
 from ui.cli.lecture import add_lecture_parser
+from ui.cli.parallel import WorkersLost
 from ui.cli.record import add_record_parsers
 from ui.cli.render import (  # noqa: F401 - DEFAULT_* are part of app's interface
     DEFAULT_PASSES,
@@ -390,6 +391,13 @@ def main(argv: list[str] | None = None) -> int:
     except (CliError, SceneError) as e:
         print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)
         return 2
+    except (OutputWriteError, WorkersLost) as e:  # a disk or a cluster failed mid-run
+        print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print(f"{PROG}: error: out of memory (lower the resolution, --spp or --photons)",
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted; nothing written", file=sys.stderr)
         return 130

@@ -14,6 +14,12 @@ import argparse
 from .common import positive_int
 
 
+class WorkersLost(Exception):
+    """Mid-run, the workers a render needs are gone (every Dask worker, a pass lost with its
+    workers, the scheduler, or a ``--jobs`` process killed): one line, exit code 1; the
+    passes merged before it are kept (``render`` saves them to its checkpoint)."""
+
+
 def _address(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError("must be a scheduler address, e.g. tcp://host:8786")
@@ -51,19 +57,28 @@ def maybe_distributed(args, scene, estimator, settings, *, passes=None, time_bud
     address, workers = getattr(args, "dask", None), getattr(args, "workers", None)
     jobs = getattr(args, "jobs", 1) or 1
     if address is None and workers is None and jobs > 1:
+        from concurrent.futures.process import BrokenProcessPool
+
         from psurf_core.parallel import render_parallel
 
-        return render_parallel(scene, estimator, settings, passes=passes,
-                               time_budget=time_budget, seed=seed, jobs=jobs,
-                               accumulator=accumulator, on_pass=on_pass)
+        try:
+            return render_parallel(scene, estimator, settings, passes=passes,
+                                   time_budget=time_budget, seed=seed, jobs=jobs,
+                                   accumulator=accumulator, on_pass=on_pass)
+        except BrokenProcessPool:
+            raise WorkersLost("--jobs: a worker process died mid-run (killed, or out of "
+                              "memory)") from None
     if address is None and workers is None:
         return None
-    from psurf_core.distributed import DistributedError, render_distributed
+    from psurf_core.distributed import DistributedError, WorkersLostError, render_distributed
 
     try:
         return render_distributed(scene, estimator, settings, passes=passes,
                                   time_budget=time_budget, seed=seed, address=address,
                                   workers=workers, accumulator=accumulator, on_pass=on_pass)
+    except WorkersLostError as e:
+        flag = "--dask" if address is not None else "--workers"
+        raise WorkersLost(f"{flag}: {e}") from None
     except DistributedError as e:
         flag = "--dask" if address is not None else "--workers"
         if error is None:

@@ -32,18 +32,21 @@ import numpy as np
 
 from .checkpoint import (
     Checkpointer,
+    CheckpointWriteError,
     checkpoint_dir_ok,
     load_resume,
+    lock_checkpoint_dir,
     report_interrupt,
     same_dir,
     save_on_failure,
     session_budget,
+    write_checkpoint,
 )
 from .common import (
     PROG,
     CliError,
+    OutputWriteError,
     check_output,
-    load_scene,
     nonempty_path,
     nonneg_float,
     nonneg_int,
@@ -62,7 +65,8 @@ from .common import (
     with_scatter,
     write_all,
 )
-from .parallel import add_dask_flags, maybe_distributed
+from .limits import check_render_sizes, load_scene_within
+from .parallel import WorkersLost, add_dask_flags, maybe_distributed
 
 #: Defaults of ``render`` (a 64x48 scene shows a recognisable image in a few seconds).
 DEFAULT_PHOTONS = 4000
@@ -196,7 +200,6 @@ def cmd_render(args) -> int:
     """Run ``render``; returns 0, 1 (an internal error) or 130 (Ctrl-C), or raises CliError."""
     from psurf_core import RenderSettings
     from psurf_core.checkpoint import render_identity
-    from psurf_core.render import RenderResult, render
 
     check_output("--out", args.out)
     if args.png is not None:
@@ -218,7 +221,7 @@ def cmd_render(args) -> int:
             raise CliError(f"--resume {args.resume}: no such directory")
         checkpoint_dir_ok("--resume", args.resume, must_be_empty=False)
 
-    scene = load_scene(args.scene)
+    scene = load_scene_within(args.scene, args.memory_budget)  # meshes checked before loading
     scene = with_scatter(scene, args.min_scatter, args.max_scatter)
     est = parse_estimator_flag(args.estimator, scene)
 
@@ -233,6 +236,7 @@ def cmd_render(args) -> int:
     identity = render_identity(args.scene, scene, est, settings, args.seed) if ck_dir else None
     ck = load_resume(args, identity) if args.resume is not None else None
     passes, time_budget = session_budget(args, ck, DEFAULT_PASSES)
+    need = check_render_sizes(args, scene, est, settings, ck_dir, ck)
 
     # Every input is valid (notes come only now, so that an error is the only line).
     note_scatter_range(est, scene)
@@ -242,11 +246,32 @@ def cmd_render(args) -> int:
         note(f"--radius/--radius-shrink ignored: estimator '{args.estimator}' has no kernel")
 
     # From here on files may be written.
+    lock = None
+    if ck_dir is not None:
+        os.makedirs(ck_dir, exist_ok=True)
+        lock = lock_checkpoint_dir("--checkpoint" if args.checkpoint else "--resume", ck_dir)
+    try:
+        return _session(args, scene, est, settings, radius, ck, ck_dir, identity, passes,
+                        time_budget, need)
+    finally:
+        if lock is not None:
+            os.close(lock)  # the outputs are in place (or nothing is written)
+
+
+def _session(args, scene, est, settings, radius, ck, ck_dir, identity, passes, time_budget,
+             need) -> int:
+    """Render (resuming ``ck``), checkpoint into ``ck_dir``, write the outputs; the exit code.
+
+    Every failure is one line: Ctrl-C (130, the passes saved), a checkpoint that cannot be
+    written (1, the previous one kept), memory or workers lost (1, the passes saved), an
+    output that cannot be written (1, none of them written).
+    """
+    from psurf_core.render import RenderResult, render
+
     acc = ck.accumulator if ck is not None else None
     seconds_before = ck.seconds if ck is not None else 0.0
     ckpt = None
     if ck_dir is not None:
-        os.makedirs(ck_dir, exist_ok=True)
         every = DEFAULT_CHECKPOINT_EVERY if args.checkpoint_every is None else args.checkpoint_every
         budget = ({"passes": passes} if passes is not None else
                   {"time": seconds_before + time_budget})
@@ -260,7 +285,7 @@ def cmd_render(args) -> int:
 
     def on_pass(i, a, elapsed):
         if ckpt is not None:
-            ckpt.on_pass(i, a, elapsed)
+            write_checkpoint(ckpt, lambda: ckpt.on_pass(i, a, elapsed))
         if bar is not None:
             bar(i, a, elapsed)
 
@@ -276,6 +301,22 @@ def cmd_render(args) -> int:
     except KeyboardInterrupt:
         close()
         return report_interrupt(ckpt, args)
+    except CheckpointWriteError as e:  # disk full, read-only, the directory vanished
+        close()
+        print(f"{PROG}: error: {e.line(args.out)}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        close()
+        saved = save_on_failure(ckpt)
+        print(f"{PROG}: error: out of memory while rendering (the run was estimated at "
+              f"{_fmt(need.total)}; lower the resolution, --spp or --photons, or give "
+              f"--memory-budget less than the memory free){saved}", file=sys.stderr)
+        return 1
+    except WorkersLost as e:  # every worker gone, or a pass lost with its worker
+        close()
+        saved = save_on_failure(ckpt)
+        print(f"{PROG}: error: {e}{saved}", file=sys.stderr)
+        return 1
     except FloatingPointError as e:  # Welford.add refused a non-finite pixel: a bug
         close()
         saved = save_on_failure(ckpt)
@@ -295,16 +336,38 @@ def cmd_render(args) -> int:
         from psurf_core.images import write_exr
 
         jobs.append((args.exr, lambda tmp: write_exr(tmp, result.mean)))
-    with sigint_deferred():
-        if ckpt is not None:
-            ckpt.write()
-        write_all(jobs)
-    written = ", ".join(p for p, _ in jobs)
+    try:
+        with sigint_deferred():
+            if ckpt is not None:
+                write_checkpoint(ckpt)
+            write_all(jobs)
+    except CheckpointWriteError as e:
+        print(f"{PROG}: error: {e.line(args.out)}", file=sys.stderr)
+        return 1
+    except OutputWriteError as e:
+        kept = (f"; {ckpt.directory} holds all {plural(ckpt.on_disk, 'pass')}: --resume "
+                f"{ckpt.directory} (without --time) writes them without rendering again"
+                if ckpt is not None and ckpt.on_disk else "")
+        print(f"{PROG}: error: {e}; nothing of {written_list(jobs)} written{kept}",
+              file=sys.stderr)
+        return 1
+    written = written_list(jobs)
     budget_text = "" if est.reference else f" x {result.photons_per_pass} photons"
     resumed = f" (continued from {plural(start_n, 'pass')})" if ck is not None else ""
     print(f"{args.estimator}: {plural(result.passes, 'pass')}{budget_text}, spp {result.spp}, "
           f"{result.seconds:.2f} s{resumed} -> {written}")
     return 0
+
+
+def written_list(jobs) -> str:
+    """``"a.npz, a.png"``: the outputs of ``jobs``."""
+    return ", ".join(p for p, _ in jobs)
+
+
+def _fmt(nbytes: float) -> str:
+    from psurf_core.budget import format_bytes
+
+    return format_bytes(nbytes)
 
 
 def _empty_acc(scene):
