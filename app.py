@@ -15,7 +15,6 @@ import sys
 import textwrap
 
 from ui.cli.common import CliError, OutputWriteError, Parser
-from ui.cli.common import load_scene as _load_scene
 from ui.cli.common import nonneg_int as _nonneg_int
 from ui.cli.common import note as _note
 from ui.cli.common import npz_writer as _npz_writer
@@ -204,10 +203,32 @@ def _window_specs(text: str | None, scene) -> list | None:
     return specs
 
 
+def _check_demo_memory(scene, specs, photons: int) -> None:
+    """The window (its estimators, breakdown stacks, the stages' record of a whole pass, one
+    background process) and the headless renders must fit in the memory available."""
+    from psurf_core import RenderSettings, parse_estimator
+    from psurf_core.budget import progressive_need, render_need
+    from ui.cli.limits import check_memory
+
+    settings = RenderSettings(photons=photons)
+    ests = [parse_estimator(s, scene) for s in (specs or ["planes"])]
+    check_memory(progressive_need(scene, ests, settings, workers=1, breakdown=True,
+                                  inspect=True), None, what="the demo")
+    for name in DEMO_ESTIMATORS:
+        try:
+            est = parse_estimator(name, scene)
+        except Exception:  # skipped with a note by the demo itself
+            continue
+        check_memory(render_need(scene, est, settings), None, what=f"the demo's {name} render")
+
+
 def cmd_demo(args) -> int:
+    from ui.cli.limits import load_scene_within
+
     scene_path = _demo_scene_path(args.scene)
-    scene = _load_scene(scene_path)
+    scene = load_scene_within(scene_path, None)  # meshes checked before they load
     specs = _window_specs(args.estimators, scene)
+    _check_demo_memory(scene, specs, args.photons)
     if args.pixel is not None:
         x, y = args.pixel
         cam = scene.camera

@@ -46,9 +46,8 @@ from dataclasses import dataclass
 from .constants import DEFAULT_MEMORY_BUDGET_MIB
 
 __all__ = ["BudgetError", "Need", "available_memory", "check", "check_mesh_files",
-           "checkpoint_bytes",
-           "depth_slots", "format_bytes", "limit", "output_bytes", "photon_limit",
-           "progressive_need", "render_need"]
+           "checkpoint_bytes", "depth_slots", "format_bytes", "limit", "output_bytes",
+           "photon_limit", "picture_bytes", "progressive_need", "render_need"]
 
 MIB = 1 << 20
 
@@ -108,6 +107,10 @@ TRIANGLE_LOAD_BYTES = 1400
 WORKER_PROCESS_BYTES = 300 * MIB
 DASK_WORKER_BYTES = 400 * MIB
 
+#: Bytes per pixel of an off-screen picture (VTK's framebuffers and read-back, the frame;
+#: measured 80: ``app.py screenshot`` at 1600x900 and 3200x1800 peaked at 620 and 950 MiB).
+PICTURE_BYTES = 100
+
 #: Bytes of a checkpoint's metadata and archive headers (the scene path, argv, identity).
 CHECKPOINT_META_BYTES = 64 << 10
 
@@ -158,6 +161,8 @@ class Need:
         The chunked pair work and the worker processes' interpreters.
     processes : int
         Worker processes (0: passes render in this process, or elsewhere).
+    extra : tuple of (str, float)
+        Further fixed parts, named (e.g. :func:`picture_bytes` of a screenshot).
     """
 
     width: int
@@ -173,6 +178,7 @@ class Need:
     pairs: float = 0.0
     workers: float = 0.0
     processes: int = 0
+    extra: tuple = ()
 
     @property
     def pixels(self) -> int:
@@ -199,7 +205,9 @@ class Need:
             photons: self.photon_bytes(),
             f"{self.triangles:,} mesh triangles": self.triangles * self.per_triangle,
             "the chunked ray x primitive work": self.pairs,
-            f"{self.processes} worker processes": self.workers,
+            f"{self.processes} worker process{'es' if self.processes != 1 else ''}":
+                self.workers,
+            **dict(self.extra),
         }
         return dict(sorted(((k, v) for k, v in parts.items() if v > 0), key=lambda kv: -kv[1]))
 
@@ -471,6 +479,8 @@ def _advice(need: Need, cap: float, largest: str, photons_flag: str, spp_flag: s
         return f"use meshes with fewer triangles (at most ~{max(n, 0):,} fit)"
     if "worker" in largest:
         return "use fewer worker processes (--jobs/--workers)"
+    if "picture" in largest:
+        return "lower --size"
     return "lower the sizes above"
 
 
@@ -546,6 +556,12 @@ def output_bytes(scene, *, png: bool = False, exr: bool = False) -> int:
     and ``var``, at worst incompressible), the PNG (8-bit RGB) and the EXR (float32 RGB)."""
     px = scene.camera.width * scene.camera.height
     return int(px * (24 + (3 if png else 0) + (12 if exr else 0)) * 1.01) + (256 << 10)
+
+
+def picture_bytes(width: int, height: int) -> tuple[str, float]:
+    """The named part of an off-screen picture of ``width x height`` (``--size``), for
+    :attr:`Need.extra`."""
+    return (f"the {width}x{height} picture (--size)", float(width) * height * PICTURE_BYTES)
 
 
 def default_pair_budget_mib() -> int:
