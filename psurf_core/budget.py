@@ -92,6 +92,10 @@ _LARGEST_TECHNIQUE = (3200, 420)
 #: paper-multi 13.9 k per photon at 16 slots against 7.8 k for its cone alone).
 MIS_MEMBER_BYTES = 800
 
+#: Bytes per photon and segment slot of one technique's primitives, kept (a pixel
+#: inspection keeps every technique's for every photon of the pass).
+KEPT_SLOT_BYTES = 100
+
 #: Share of ``--memory-budget`` one chunk of the ray x primitive work uses at most (measured
 #: 0.10 for planes, 0.23 for beams: peak growth per MiB of budget between 16 and 2048 MiB).
 PAIR_FRACTION = 0.35
@@ -101,6 +105,12 @@ PAIR_FRACTION = 0.35
 #: loading, 740-1230 in all through a render).
 TRIANGLE_BYTES = 600
 TRIANGLE_LOAD_BYTES = 1400
+
+#: What a scene with any mesh needs besides its triangles: trimesh and its imports (measured
+#: 64 MiB) and one chunk of exact ray-triangle tests (``geometry._TRI_CHUNK`` = 2**21 pairs;
+#: measured: a render with an 81920-triangle mesh light grew 322 MiB, one with 327680
+#: triangles 230-297 MiB after trimesh was imported).
+MESH_FIXED_BYTES = 192 * MIB
 
 #: A worker process's interpreter with numpy, numba and the compiled kernels (measured peak
 #: 219-280 MiB for ``--jobs`` workers); a Dask worker adds its own runtime.
@@ -271,18 +281,29 @@ def _technique_bytes(name: str) -> tuple[int, int]:
 def photon_bytes(scene, estimator, *, keep_all: bool = False) -> float:
     """Bytes per photon in memory while a batch is processed (0 for the path tracer).
 
-    ``keep_all``: every technique's primitives are kept (a pixel inspection's record), not
-    one technique's at a time.
+    ``keep_all``: every batch's paths and every technique's primitives are kept (a pixel
+    inspection's record, whose work is one pixel's): :data:`KEPT_SLOT_BYTES` per technique
+    and slot (measured per photon, kept over 16384-65536 photons: planes 3.9 k, paper-multi
+    7.7 k; modelled 5.7 k and 15.3 k).
     """
     if getattr(estimator, "reference", False):
         return 0.0
     d = depth_slots(scene, estimator)
     techs = [_technique_bytes(t.name) for t in _techniques(estimator)] or [_LARGEST_TECHNIQUE]
-    costs = [a + b * d for a, b in techs]
-    prims = sum(costs) if keep_all else max(costs)
+    costs = sorted(a + b * d for a, b in techs)
+    trace = TRACE_BYTES[0] + TRACE_BYTES[1] * d
+    if keep_all:
+        return trace + KEPT_SLOT_BYTES * d * len(costs)
     groups = getattr(estimator, "groups", ()) or ()
     mis = max((len(g) for g in groups if len(g) > 1), default=0) * MIS_MEMBER_BYTES
-    return TRACE_BYTES[0] + TRACE_BYTES[1] * d + prims + mis
+    return trace + costs[-1] + mis
+
+
+def _mesh_parts(triangles: int, processes: int) -> tuple:
+    """The named fixed part of meshes in ``processes`` processes (none without a mesh)."""
+    if not triangles:
+        return ()
+    return (("trimesh and the ray-triangle tests", float(MESH_FIXED_BYTES) * processes),)
 
 
 def scene_triangles(scene) -> int:
@@ -350,7 +371,8 @@ def render_need(scene, estimator, settings, *, jobs: int = 1, local_workers: int
                 photons=photons, triangles=scene_triangles(scene), per_pixel=per_pixel,
                 per_ray=per_ray * here, per_photon=per_photon * here,
                 per_triangle=TRIANGLE_BYTES * (1 + procs), pairs=pairs * here,
-                workers=per_worker * procs, processes=procs)
+                workers=per_worker * procs, processes=procs,
+                extra=_mesh_parts(scene_triangles(scene), 1 + procs))
 
 
 def progressive_need(scene, estimators, settings, *, workers: int = 1,
@@ -382,7 +404,8 @@ def progressive_need(scene, estimators, settings, *, workers: int = 1,
                 spp=int(settings.spp), photons=photons, triangles=scene_triangles(scene),
                 per_pixel=per_pixel, per_ray=per_ray * here, per_photon=per_photon * here,
                 per_triangle=TRIANGLE_BYTES * (1 + workers), per_photon_kept=kept,
-                pairs=pairs * here, workers=WORKER_PROCESS_BYTES * workers, processes=workers)
+                pairs=pairs * here, workers=WORKER_PROCESS_BYTES * workers, processes=workers,
+                extra=_mesh_parts(scene_triangles(scene), 1 + workers))
 
 
 # --------------------------------------------------------------------------- the limit

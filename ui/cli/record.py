@@ -169,7 +169,7 @@ def _check_memory(args, scene, ests, settings, breakdown: bool, what: str) -> No
     from psurf_core.budget import picture_bytes, progressive_need
 
     need = progressive_need(scene, ests, settings, workers=0, breakdown=breakdown)
-    need = replace(need, extra=(picture_bytes(*args.size),))
+    need = replace(need, extra=need.extra + (picture_bytes(*args.size),))
     check_memory(need, args.memory_budget, what=what)
 
 

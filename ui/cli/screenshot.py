@@ -75,7 +75,7 @@ def _check_memory(args, scene, specs) -> None:
     ests = [parse_estimator(s, scene) for s in specs]
     need = progressive_need(scene, ests, RenderSettings(photons=args.photons), workers=0,
                             breakdown=args.mode != "render", inspect=True)
-    check_memory(replace(need, extra=(picture_bytes(*args.size),)), None,
+    check_memory(replace(need, extra=need.extra + (picture_bytes(*args.size),)), None,
                  what="the screenshot")
 
 
