@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-spec = importlib.util.spec_from_file_location("memory_model", ROOT / "benchmarks" / "memory_model.py")
+spec = importlib.util.spec_from_file_location("memory_model",
+                                              ROOT / "benchmarks" / "memory_model.py")
 memory_model = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(memory_model)
 
