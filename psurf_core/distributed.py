@@ -233,9 +233,14 @@ def render_distributed(
     except Exception as e:
         if not _is_loss(e):
             raise
-        raise WorkersLostError(f"the cluster lost pass {acc.n} ({type(e).__name__}: "
-                               f"{' '.join(str(e).split())[:200]}) after "
-                               f"{acc.n} merged passes") from None
+        if _live_workers(client) == 0:
+            raise WorkersLostError(f"no Dask worker is left (the passes in flight and the "
+                                   f"scene sent to the workers went with them); {acc.n} "
+                                   f"passes were merged") from None
+        why = " ".join(str(e).split())
+        raise WorkersLostError(f"the cluster lost pass {acc.n} with its workers "
+                               f"({type(e).__name__}: {why[:160]}{'...' if len(why) > 160 else ''}"
+                               f"); {acc.n} passes were merged") from None
 
 
 def _is_loss(e: Exception) -> bool:
