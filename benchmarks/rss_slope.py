@@ -13,9 +13,12 @@ background render (:class:`ui.cli.progressive.Progressive`, one worker process, 
 times a second as the window's timer does, every estimator accumulating) in this process
 and samples this process plus its worker; the VTK window itself is not opened.
 
-Reported (and written to ``--json``): RSS at the start of the fit, at the end and its
-maximum, and the least-squares slope in MiB per hour over the samples after the first
-``--warmup`` seconds (compilation, first allocations), with the fit's standard error; and
+Reported (and written to ``--json``, with the thinned series): RSS at the start of the fit,
+at the end and its maximum, and the least-squares slope in MiB per hour over the samples
+after the first ``--warmup`` seconds (compilation, first allocations), with the fit's
+standard error, the slope of the second half alone (a drift that levels off), and the slope
+of the floor (the lowest sample of every ``--floor-window`` seconds: what stays allocated
+between the passes' transient peaks, the number to read for the window); and
 that no pass was lost: ``render``'s ``.npz`` holds as many passes as its last checkpoint,
 ``progressive``'s accumulators equal a serial render of as many passes, bit for bit
 (``--verify``, default on). The numbers depend on the machine and what else runs on it.
@@ -58,8 +61,9 @@ def rss_bytes(pid: int) -> int:
     return total
 
 
-def fit(samples: list[tuple[float, int]], warmup: float) -> dict:
-    """Least-squares slope of RSS over time after ``warmup`` seconds (MiB/hour)."""
+def fit(samples: list[tuple[float, int]], warmup: float, floor_window: float = 30.0) -> dict:
+    """Least-squares slope of RSS over time after ``warmup`` seconds (MiB/hour), of all
+    samples and of the floor (each ``floor_window`` seconds' lowest sample)."""
     t = np.array([s[0] for s in samples])
     r = np.array([s[1] for s in samples], dtype=float) / 2**20
     keep = t >= warmup
@@ -71,10 +75,30 @@ def fit(samples: list[tuple[float, int]], warmup: float) -> dict:
     dof = max(t.size - 2, 1)
     sigma2 = float(np.sum((r - a @ coef) ** 2) / dof)
     se = float(np.sqrt(sigma2 / np.sum((t - t.mean()) ** 2)))
+    # The floor between passes (the lowest sample of each --floor-window seconds): what
+    # stays allocated, without the transient peaks of the passes themselves.
+    edges = np.arange(t[0], t[-1] + floor_window, floor_window)
+    floor_t, floor_r = [], []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        sel = (t >= a) & (t < b)
+        if sel.any():
+            floor_t.append(float(t[sel][np.argmin(r[sel])]))
+            floor_r.append(float(r[sel].min()))
+    floor = (np.polyfit(floor_t, floor_r, 1)[0] * 3600 if len(floor_t) >= 3
+             else float("nan"))
+    half = t >= (t[0] + t[-1]) / 2
+    late = np.polyfit(t[half], r[half], 1)[0] * 3600 if half.sum() >= 3 else float("nan")
+    step = max(1, t.size // 200)
     return {"samples": int(t.size), "fit_seconds": float(t[-1] - t[0]),
             "rss_start_mib": float(r[0]), "rss_end_mib": float(r[-1]),
             "rss_max_mib": float(r.max()), "slope_mib_per_hour": float(coef[0] * 3600),
-            "slope_se_mib_per_hour": float(se * 3600)}
+            "slope_se_mib_per_hour": float(se * 3600),
+            "slope_second_half_mib_per_hour": float(late),
+            "floor_slope_mib_per_hour": float(floor), "floor_window_s": floor_window,
+            "floor_start_mib": floor_r[0] if floor_r else None,
+            "floor_end_mib": floor_r[-1] if floor_r else None,
+            "series_s_mib": [[round(float(a), 1), round(float(b), 2)]
+                             for a, b in zip(t[::step], r[::step], strict=True)]}
 
 
 def run_render(args) -> dict:
@@ -106,7 +130,7 @@ def run_render(args) -> dict:
     samples = [s for s in samples if s[1] > 0]
     return {"mode": "render", "command": " ".join(cmd[1:]), "passes": passes,
             "checkpoint_passes": saved, "no_pass_lost": passes == saved,
-            **fit(samples, args.warmup)}
+            **fit(samples, args.warmup, args.floor_window)}
 
 
 def run_progressive(args) -> dict:
@@ -147,7 +171,7 @@ def run_progressive(args) -> dict:
                              and np.array_equal(ref.accumulator.m2, acc.m2))
     return {"mode": "progressive", "estimators": specs, "photons": args.photons,
             "passes": {spec: int(acc.n) for spec, acc in runs},
-            "no_pass_lost": verified, **fit(samples, args.warmup)}
+            "no_pass_lost": verified, **fit(samples, args.warmup, args.floor_window)}
 
 
 def main(argv=None) -> int:
@@ -163,12 +187,14 @@ def main(argv=None) -> int:
     p.add_argument("--interval", type=float, default=1.0)
     p.add_argument("--warmup", type=float, default=20.0,
                    help="seconds left out of the fit (default 20)")
+    p.add_argument("--floor-window", type=float, default=30.0,
+                   help="seconds per floor sample (default 30)")
     p.add_argument("--no-verify", dest="verify", action="store_false")
     p.add_argument("--json", default=None, metavar="OUT.json")
     args = p.parse_args(argv)
     result = run_render(args) if args.mode == "render" else run_progressive(args)
     result["argv"] = sys.argv
-    print(json.dumps(result, indent=1))
+    print(json.dumps({k: v for k, v in result.items() if k != "series_s_mib"}, indent=1))
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1))
     return 0 if result.get("no_pass_lost") in (True, None) else 1

@@ -128,7 +128,9 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--radius-shrink", type=shrink, default=1.0, metavar="ALPHA",
                    help="progressive radius reduction alpha in (0, 1] (default 1: fixed)")
     p.add_argument("--memory-budget", type=positive_int, default=None, metavar="MIB",
-                   help="memory bound of the chunked ray x primitive work in MiB")
+                   help="memory limit of the run in MiB (checked before rendering; it also "
+                        "sizes the chunks of the ray x primitive work; default: the memory "
+                        "available)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output directory (created if missing)")
     add_dask_flags(p)

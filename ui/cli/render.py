@@ -19,6 +19,13 @@ SECONDS, at the end, and when the render is interrupted (Ctrl-C: the completed p
 saved, then one line and exit code 130). ``--resume DIR`` continues at the checkpoint's pass
 count and gives bit-for-bit the mean and variance of an uninterrupted run; it refuses a
 checkpoint made with another scene file, estimator, seed or setting.
+
+Before anything is allocated or written, :func:`~ui.cli.limits.check_render_sizes` checks
+the run's memory (:mod:`psurf_core.budget`) and every output folder's disk. Failures during
+the run are one line and exit code 1, nothing half-written: a checkpoint that cannot be
+written (the previous one stays), an output that cannot be written (none is), memory or the
+workers lost (the completed passes are saved). The checkpoint directory is locked for the
+run, and a killed writer's temporary files there are removed.
 """
 
 from __future__ import annotations
@@ -107,7 +114,11 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
             then exits with code 130). Re-run the same command with --resume DIR to continue:
             the result is bit-identical to an uninterrupted render with the same seed.
             On resume, --passes P is the total pass count and --time SECONDS the time for
-            more passes; without either, the checkpoint's own budget is finished."""),
+            more passes; without either, the checkpoint's own budget is finished.
+            A kill at any moment leaves the last checkpoint complete; a checkpoint or output
+            that cannot be written (disk full, read-only, gone) ends the run with one line
+            and exit code 1, the previous checkpoint kept. Sizes are checked against
+            --memory-budget (or the memory available) and the disk before rendering."""),
         epilog=f"estimators:\n{estimators}",
     )
     r.add_argument("scene", metavar="SCENE.toml", help="scene file (see SCENES.md)")
@@ -135,8 +146,11 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
     r.add_argument("--radius-shrink", type=shrink, default=1.0, metavar="ALPHA",
                    help="progressive radius reduction alpha in (0, 1] (default 1: fixed)")
     r.add_argument("--memory-budget", type=positive_int, default=None, metavar="MIB",
-                   help="memory bound of the chunked ray x primitive work in MiB "
-                        "(default: psurf_core.constants.DEFAULT_MEMORY_BUDGET_MIB)")
+                   help="memory limit of the run in MiB: image, camera rays, photon "
+                        "batch, meshes, worker processes and the chunked ray x primitive "
+                        "work (sized from it) are checked against it before anything is "
+                        "allocated (default: the memory available, and chunks of "
+                        "psurf_core.constants.DEFAULT_MEMORY_BUDGET_MIB)")
     r.add_argument("--out", required=True, metavar="OUT.npz", help="output .npz")
     r.add_argument("--png", default=None, metavar="OUT.png", help="also write a tone-mapped PNG")
     r.add_argument("--exr", default=None, metavar="OUT.exr",
@@ -309,8 +323,8 @@ def _session(args, scene, est, settings, radius, ck, ck_dir, identity, passes, t
         close()
         saved = save_on_failure(ckpt)
         print(f"{PROG}: error: out of memory while rendering (the run was estimated at "
-              f"{_fmt(need.total)}; lower the resolution, --spp or --photons, or give "
-              f"--memory-budget less than the memory free){saved}", file=sys.stderr)
+              f"{_fmt(need.total)}; lower the resolution, --spp or --photons, or give a "
+              f"--memory-budget below the memory free){saved}", file=sys.stderr)
         return 1
     except WorkersLost as e:  # every worker gone, or a pass lost with its worker
         close()
