@@ -7,8 +7,9 @@
 * Every worker gone (killed, nannies told not to restart them): the run stops after
   ``no_worker_timeout`` with :class:`~psurf_core.distributed.WorkersLostError`, one line
   saying so; the passes merged before are intact.
-* The command line: a lost cluster (or a ``--jobs`` process killed) is one line, exit code 1,
-  the completed passes saved to the checkpoint.
+* The command line: a lost cluster is one line, exit code 1, the completed passes saved to
+  the checkpoint; a ``--jobs`` worker process killed mid-run is replaced by a new pool and the
+  image stays bit-identical, until workers died ``JOB_RESTARTS + 1`` times (then one line).
 
 Skipped, with the reason, only when Dask cannot start a local cluster here.
 """
@@ -195,28 +196,54 @@ def test_render_saves_the_passes_when_the_cluster_is_lost(work, capsys, monkeypa
     assert not (work / "o.npz").exists()
 
 
-def test_render_jobs_worker_killed_is_one_line(work, capsys, monkeypatch):
+def kill_a_pool_worker_when(monkeypatch, when):
+    """After ``Welford.add`` in this process (the merge; workers are spawned fresh and do not
+    see the patch), SIGKILL one of this process's worker processes if ``when(n)``."""
     import multiprocessing
 
     from psurf_core.accumulate import Welford
 
     real = Welford.add
 
-    def add(self, x):  # in this process only: the workers are spawned fresh
+    def add(self, x):
         real(self, x)
-        if self.n == 2:
+        if when(self.n):
             for proc in multiprocessing.active_children():
                 os.kill(proc.pid, signal.SIGKILL)
                 break
 
     monkeypatch.setattr(Welford, "add", add)
-    code = app.main(["render", "scene.toml", "--estimator", "planes", "--photons", "2000",
-                     "--passes", "12", "--jobs", "2", "--out", "o.npz", "--checkpoint", "ck",
-                     "--checkpoint-every", "0"])
+
+
+PLAIN = ["render", "scene.toml", "--estimator", "planes", "--photons", "2000", "--passes", "10"]
+JOBS = [*PLAIN, "--jobs", "2", "--checkpoint-every", "0"]
+
+
+def test_render_jobs_continues_in_a_new_pool_bit_identically(work, capsys, monkeypatch):
+    with monkeypatch.context() as m:
+        kill_a_pool_worker_when(m, lambda n: n == 2)
+        code = app.main([*JOBS, "--out", "killed.npz", "--checkpoint", "ck"])
+    _, err = capsys.readouterr()
+    assert code == 0, err
+    assert "a new pool continues from pass" in err and "Traceback" not in err, err
+    assert app.main([*PLAIN, "--out", "plain.npz"]) == 0  # one process
+    with np.load(work / "killed.npz") as a, np.load(work / "plain.npz") as b:
+        assert int(a["passes"]) == int(b["passes"]) == 10
+        np.testing.assert_array_equal(a["mean"], b["mean"])
+        np.testing.assert_array_equal(a["var"], b["var"])
+
+
+def test_render_jobs_workers_dying_again_and_again_is_one_line(work, capsys, monkeypatch):
+    import ui.cli.parallel
+
+    with monkeypatch.context() as m:
+        m.setattr(ui.cli.parallel, "JOB_RESTARTS", 1)  # two pools, not four: quicker
+        kill_a_pool_worker_when(m, lambda n: True)
+        code = app.main([*JOBS, "--out", "o.npz", "--checkpoint", "ck"])
     _, err = capsys.readouterr()
     lines = [ln for ln in err.strip().splitlines() if not ln.startswith("psurf: note:")]
     assert code == 1 and len(lines) == 1 and "Traceback" not in err, err
-    assert "--jobs: a worker process died" in lines[0], lines[0]
-    assert "ck holds the" in lines[0], lines[0]
-    assert 2 <= ck.load_checkpoint(work / "ck").accumulator.n < 12
+    assert "--jobs: worker processes died 2 times" in lines[0], lines[0]
+    n = ck.load_checkpoint(work / "ck").accumulator.n
+    assert 1 <= n < 10 and f"ck holds the {n} completed passes" in lines[0], lines[0]
     assert not (work / "o.npz").exists()
