@@ -47,7 +47,8 @@ from .constants import DEFAULT_MEMORY_BUDGET_MIB
 
 __all__ = ["BudgetError", "Need", "available_memory", "check", "check_mesh_files",
            "checkpoint_bytes", "depth_slots", "format_bytes", "limit", "output_bytes",
-           "photon_limit", "picture_bytes", "progressive_need", "render_need"]
+           "photon_limit", "picture_bytes", "progressive_need", "release_free_memory",
+           "render_need"]
 
 MIB = 1 << 20
 
@@ -406,6 +407,36 @@ def progressive_need(scene, estimators, settings, *, workers: int = 1,
                 per_triangle=TRIANGLE_BYTES * (1 + workers), per_photon_kept=kept,
                 pairs=pairs * here, workers=WORKER_PROCESS_BYTES * workers, processes=workers,
                 extra=_mesh_parts(scene_triangles(scene), 1 + workers))
+
+
+def release_free_memory() -> bool:
+    """Hand the heap's free pages back to the system (glibc ``malloc_trim``; elsewhere a
+    no-op returning False).
+
+    A long render frees everything a pass allocates, but glibc keeps some freed pages: RSS
+    then creeps up by a few MiB per hour without any leak (measured: 5.8 MiB/h over a 15-min
+    ``planes`` render, while numba's allocations balance and ``malloc_trim`` brings RSS back
+    to where it started). ``render`` calls this every :data:`TRIM_SECONDS`.
+    """
+    global _LIBC
+    if _LIBC is None:
+        try:
+            import ctypes
+
+            _LIBC = ctypes.CDLL("libc.so.6")
+            _LIBC.malloc_trim.argtypes = [ctypes.c_size_t]
+        except (OSError, AttributeError):
+            _LIBC = False
+    if not _LIBC:
+        return False
+    _LIBC.malloc_trim(0)
+    return True
+
+
+#: Seconds between :func:`release_free_memory` calls of a long render.
+TRIM_SECONDS = 30.0
+
+_LIBC = None
 
 
 # --------------------------------------------------------------------------- the limit
