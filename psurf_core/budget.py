@@ -415,8 +415,9 @@ def release_free_memory() -> bool:
 
     A long render frees everything a pass allocates, but glibc keeps some freed pages: RSS
     then creeps up by a few MiB per hour without any leak (measured: 5.8 MiB/h over a 15-min
-    ``planes`` render, while numba's allocations balance and ``malloc_trim`` brings RSS back
-    to where it started). ``render`` calls this every :data:`TRIM_SECONDS`.
+    ``planes`` render, while numba's allocations balanced, Python's objects stayed flat and
+    ``malloc_trim`` brought RSS to the same 271.4-271.9 MiB after 500 and after 1700 passes).
+    ``render`` calls this every :data:`TRIM_SECONDS`.
     """
     global _LIBC
     if _LIBC is None:
