@@ -29,26 +29,20 @@ the model is meant to be above the measurement (by up to ~2x), never far below i
 interpreter, numpy, numba and the compiled kernels occupy before the run (~200-300 MiB) is
 not part of a run's need.
 
-:func:`check` compares a need with the limit, :func:`limit` names it: ``--memory-budget MIB``
-when given (the chunk size of the pair work is then derived from it too), otherwise the memory
-this machine has available (:func:`available_memory`). :func:`photon_limit` is the largest
-photon count per pass that fits (the window's photon slider). Nothing here allocates more
-than a few scalars, so every check runs before the run's arrays exist.
+:mod:`psurf_core.budget_check` compares a need with the limit (``--memory-budget`` or the
+memory available) and says what to change; its ``photon_limit`` is the window's photon
+slider's bound. Nothing here allocates more than a few scalars, so every check runs before
+the run's arrays exist.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
-import os
 from dataclasses import dataclass
 
-from .constants import DEFAULT_MEMORY_BUDGET_MIB
-
-__all__ = ["BudgetError", "Need", "available_memory", "check", "check_mesh_files",
-           "checkpoint_bytes", "depth_slots", "format_bytes", "limit", "output_bytes",
-           "photon_limit", "picture_bytes", "progressive_need", "release_free_memory",
-           "render_need"]
+__all__ = ["Need", "accumulator_bytes_per_pixel", "checkpoint_bytes", "depth_slots",
+           "format_bytes", "output_bytes", "photon_bytes", "picture_bytes", "progressive_need",
+           "render_need", "scene_triangles"]
 
 MIB = 1 << 20
 
@@ -97,9 +91,12 @@ MIS_MEMBER_BYTES = 800
 #: inspection keeps every technique's for every photon of the pass).
 KEPT_SLOT_BYTES = 100
 
-#: Share of ``--memory-budget`` one chunk of the ray x primitive work uses at most (measured
-#: 0.10 for planes, 0.23 for beams: peak growth per MiB of budget between 16 and 2048 MiB).
+#: Share of ``--memory-budget`` one chunk of the ray x primitive work uses at most: by the
+#: stages (binning, intersect, evaluate; measured 0.23 for beams: peak growth per MiB of
+#: budget between 16 and 2048 MiB), and in a technique's compiled walker, which keeps no
+#: candidate pairs (``Technique.compiled``; measured 0.04 for planes between 512 and 2048).
 PAIR_FRACTION = 0.35
+COMPILED_PAIR_FRACTION = 0.10
 
 #: Bytes per mesh triangle kept while rendering (triangles, bounds, planes, sampling tables,
 #: the acceleration structure) and at most while trimesh loads it (measured 600-1050 while
@@ -124,10 +121,6 @@ PICTURE_BYTES = 100
 
 #: Bytes of a checkpoint's metadata and archive headers (the scene path, argv, identity).
 CHECKPOINT_META_BYTES = 64 << 10
-
-
-class BudgetError(ValueError):
-    """A run that does not fit: the message is one line (what it needs, what to change)."""
 
 
 def accumulator_bytes_per_pixel() -> int:
@@ -325,7 +318,9 @@ def _pass_work(scene, estimators, settings_list):
             continue
         photons = max(photons, int(st.photons))
         per_photon = max(per_photon, photon_bytes(scene, est))
-        pairs = max(pairs, PAIR_FRACTION * st.memory_budget_mib * MIB)
+        share = max((COMPILED_PAIR_FRACTION if getattr(t, "compiled", None) is not None
+                     else PAIR_FRACTION for t in _techniques(est)), default=PAIR_FRACTION)
+        pairs = max(pairs, share * st.memory_budget_mib * MIB)
     return per_ray, per_photon, photons, pairs
 
 
@@ -409,194 +404,6 @@ def progressive_need(scene, estimators, settings, *, workers: int = 1,
                 extra=_mesh_parts(scene_triangles(scene), 1 + workers))
 
 
-def release_free_memory() -> bool:
-    """Hand the heap's free pages back to the system (glibc ``malloc_trim``; elsewhere a
-    no-op returning False).
-
-    A long render frees everything a pass allocates, but glibc keeps some freed pages: RSS
-    then creeps up by a few MiB per hour without any leak (measured: 5.8 MiB/h over a 15-min
-    ``planes`` render, while numba's allocations balanced, Python's objects stayed flat and
-    ``malloc_trim`` brought RSS to the same 271.4-271.9 MiB after 500 and after 1700 passes).
-    ``render`` calls this every :data:`TRIM_SECONDS`.
-    """
-    global _LIBC
-    if _LIBC is None:
-        try:
-            import ctypes
-
-            _LIBC = ctypes.CDLL("libc.so.6")
-            _LIBC.malloc_trim.argtypes = [ctypes.c_size_t]
-        except (OSError, AttributeError):
-            _LIBC = False
-    if not _LIBC:
-        return False
-    _LIBC.malloc_trim(0)
-    return True
-
-
-#: Seconds between :func:`release_free_memory` calls of a long render.
-TRIM_SECONDS = 30.0
-
-_LIBC = None
-
-
-# --------------------------------------------------------------------------- the limit
-
-
-def available_memory() -> int | None:
-    """Bytes this process may still allocate: the smaller of the machine's ``MemAvailable``
-    and what its cgroup (a container's limit) leaves; ``None`` when neither is known."""
-    found = []
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    found.append(int(line.split()[1]) * 1024)
-                    break
-    except (OSError, ValueError):
-        pass
-    try:
-        with open("/sys/fs/cgroup/memory.max") as f:
-            cap = f.read().strip()
-        if cap != "max":
-            with open("/sys/fs/cgroup/memory.current") as f:
-                found.append(max(0, int(cap) - int(f.read().strip())))
-    except (OSError, ValueError):
-        pass
-    if not found:
-        try:
-            found.append(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-        except (ValueError, OSError, AttributeError):
-            return None
-    return int(min(found))
-
-
-def limit(budget_mib: int | None, flag: str = "--memory-budget") -> tuple[float | None, str]:
-    """``(bytes, phrase)`` of the limit a run is checked against: ``flag``'s value when given,
-    else the memory available now (``None`` bytes: unknown, nothing is checked)."""
-    if budget_mib is not None:
-        return float(budget_mib) * MIB, f"{flag} {budget_mib} MiB"
-    avail = available_memory()
-    if avail is None:
-        return None, "the available memory (unknown)"
-    return float(avail), f"the {format_bytes(avail)} of memory available on this machine"
-
-
-def check(need: Need, budget_mib: int | None, *, what: str = "the render",
-          flag: str = "--memory-budget", photons_flag: str = "--photons",
-          spp_flag: str = "--spp") -> None:
-    """Raise :class:`BudgetError` when ``need`` exceeds the limit (:func:`limit`), or, with a
-    budget given, the memory available on this machine.
-
-    The message names the total and its largest parts, the limit, and what to change: the
-    largest size that would fit with everything else kept, and the budget that would hold
-    the run (when the machine has that much).
-    """
-    cap, phrase = limit(budget_mib, flag)
-    total = need.total
-    if cap is not None and total > cap:
-        avail = available_memory() if budget_mib is not None else None
-        raise_it = f", or raise {flag} to {math.ceil(total / MIB)} MiB" \
-            if budget_mib is not None and (avail is None or total <= avail) else ""
-    else:
-        avail = available_memory() if budget_mib is not None else None
-        if avail is None or total <= avail:
-            return
-        cap, raise_it = float(avail), ""
-        phrase = f"the {format_bytes(avail)} of memory available on this machine"
-    parts = list(need.parts().items())
-    shown = ", ".join(f"{k} {format_bytes(v)}" for k, v in parts[:3])
-    advice = _advice(need, cap, parts[0][0], photons_flag, spp_flag)
-    raise BudgetError(f"{what} would need about {format_bytes(total)} of memory ({shown}), "
-                      f"more than {phrase}; {advice}{raise_it}")
-
-
-def _advice(need: Need, cap: float, largest: str, photons_flag: str, spp_flag: str) -> str:
-    """What to change: the size behind the largest part, and how far."""
-    spp_room = (cap - need.without("spp")) // (need.pixels * need.per_ray) if need.per_ray else 0
-    if "image" in largest or ("camera rays" in largest and (need.spp == 1 or spp_room < 1)):
-        per = need.per_pixel + need.spp * need.per_ray
-        n = int((cap - need.without("pixels")) // per) if per else 0
-        if n < 1:
-            return "no resolution fits beside the rest of the run; lower the other sizes"
-        w, h = _fit_side(need.width, need.height, n)
-        return (f"lower camera.resolution in the scene file (at most ~{n:,} pixels fit, "
-                f"e.g. {w}x{h})")
-    if "camera rays" in largest:
-        return f"lower {spp_flag} to at most {int(spp_room)} (or the resolution)"
-    if "photons" in largest:
-        n = need.max_photons(cap)
-        if n >= 1:
-            return f"lower {photons_flag} to at most {n:,}"
-        return f"lower {photons_flag} (not even one photon fits beside the rest of the run)"
-    if "triangles" in largest:
-        n = int((cap - need.without("triangles")) // need.per_triangle)
-        return f"use meshes with fewer triangles (at most ~{max(n, 0):,} fit)"
-    if "worker" in largest:
-        return "use fewer worker processes (--jobs/--workers)"
-    if "picture" in largest:
-        return "lower --size"
-    return "lower the sizes above"
-
-
-def _fit_side(w: int, h: int, pixels: int) -> tuple[int, int]:
-    """The largest ``W x H`` with the aspect of ``w x h`` within ``pixels``."""
-    s = math.sqrt(pixels / (w * h))
-    return max(1, int(w * s)), max(1, int(h * s))
-
-
-def photon_limit(scene, estimators, settings, *, budget_mib: int | None = None,
-                 workers: int = 1, breakdown: bool = False, inspect: bool = True) -> int:
-    """The largest photon count per pass that fits the window's progressive render.
-
-    For the window's photon slider: clamp its value to this (0 when not even the rest of the
-    run fits; ``2**62`` when any count fits). ``estimators`` are the parsed estimators
-    shown, ``settings`` the window's :class:`~psurf_core.render.RenderSettings` (its
-    ``photons`` is ignored), ``workers`` its background processes; ``inspect`` counts the
-    stages' record of one whole pass, which keeps every photon. Without ``budget_mib`` the
-    limit is the memory available now (:func:`available_memory`; unknown: ``2**62``).
-    """
-    cap, _ = limit(budget_mib)
-    if cap is None:
-        return 1 << 62
-    need = progressive_need(scene, estimators, settings, workers=workers, breakdown=breakdown,
-                            inspect=inspect)
-    return need.max_photons(cap)
-
-
-def check_mesh_files(scene_path, budget_mib: int | None, *,
-                     flag: str = "--memory-budget") -> None:
-    """Raise :class:`BudgetError` before loading when the scene file's meshes would not fit
-    while trimesh loads them (:data:`TRIANGLE_LOAD_BYTES` per triangle; counts from
-    :func:`psurf_core.mesh_files.triangle_count`). Meshes of unknown size pass: they are
-    counted once loaded."""
-    from .mesh_files import scene_mesh_files, triangle_count
-
-    cap, phrase = limit(budget_mib, flag)
-    if cap is None:
-        return
-    meshes = []
-    for key, path in scene_mesh_files(scene_path):
-        # A file this small cannot hold more triangles than fit (>= 8 bytes per face
-        # record): skip the count.
-        try:
-            small = os.path.getsize(path) * TRIANGLE_LOAD_BYTES / 8 <= cap
-        except OSError:
-            continue  # the loader names the missing file
-        n = None if small else triangle_count(path)
-        if n:
-            meshes.append((key, path, n))
-    total = sum(n for _, _, n in meshes) * TRIANGLE_LOAD_BYTES
-    if total <= cap:
-        return
-    key, path, n = max(meshes, key=lambda m: m[2])
-    fit = int((cap - (total - n * TRIANGLE_LOAD_BYTES)) // TRIANGLE_LOAD_BYTES)
-    more = f", or raise {flag} to {math.ceil(total / MIB)} MiB" if budget_mib is not None else ""
-    raise BudgetError(f"{scene_path}: {key}: {path} has {n:,} triangles; loading the scene's "
-                      f"meshes would need about {format_bytes(total)} of memory, more than "
-                      f"{phrase}; use a mesh with at most ~{max(fit, 0):,} triangles{more}")
-
-
 # --------------------------------------------------------------------------- disk
 
 
@@ -618,7 +425,3 @@ def picture_bytes(width: int, height: int) -> tuple[str, float]:
     :attr:`Need.extra`."""
     return (f"the {width}x{height} picture (--size)", float(width) * height * PICTURE_BYTES)
 
-
-def default_pair_budget_mib() -> int:
-    """The chunk budget of the pair work when ``--memory-budget`` is not given."""
-    return DEFAULT_MEMORY_BUDGET_MIB

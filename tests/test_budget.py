@@ -1,9 +1,10 @@
 """Sizes beyond the machine: every size a user controls is checked before anything is allocated.
 
-* :mod:`psurf_core.budget`, pure: the need is linear in each size, counts every array of the
-  accumulator, does not grow with the pass count, multiplies with worker processes; the
-  message names the need, the limit and what to change (how far); :func:`photon_limit` (the
-  window's photon slider) is monotone and 0 when nothing fits; checkpoint bytes are the file's.
+* :mod:`psurf_core.budget` and :mod:`psurf_core.budget_check`, pure: the need is linear in
+  each size, counts every array of the accumulator, does not grow with the pass count,
+  multiplies with worker processes; the message names the need, the limit and what to
+  change (how far); :func:`photon_limit` (the window's photon slider) is monotone and 0 when
+  nothing fits; checkpoint bytes are the file's.
 * The commands, one size at a time (resolution, spp, photons, mesh triangles, ``--jobs``,
   the picture, compare's estimators and runs): exit code 2, one ``psurf: error:`` line
   naming the size, no traceback, nothing written, and quickly (no allocation is attempted:
@@ -25,7 +26,7 @@ import numpy as np
 import pytest
 
 import app
-from psurf_core import budget, load_scene, parse_estimator
+from psurf_core import budget, budget_check, load_scene, parse_estimator
 from psurf_core.accumulate import Welford
 from psurf_core.checkpoint import save_checkpoint
 from psurf_core.mesh_files import scene_mesh_files, triangle_count
@@ -107,8 +108,8 @@ def test_the_message_says_what_it_needs_and_what_to_change():
     sc = scene_at(2048, 1536)
     est = parse_estimator("planes", sc)
     need = budget.render_need(sc, est, RenderSettings(photons=100, memory_budget_mib=256))
-    with pytest.raises(budget.BudgetError) as e:
-        budget.check(need, 256)
+    with pytest.raises(budget_check.BudgetError) as e:
+        budget_check.check(need, 256)
     msg = str(e.value)
     assert "\n" not in msg and "--memory-budget 256 MiB" in msg, msg
     assert "lower camera.resolution" in msg and "pixels fit" in msg, msg
@@ -117,7 +118,7 @@ def test_the_message_says_what_it_needs_and_what_to_change():
     n = number_after(msg, "at most ~")
     w = int(np.sqrt(n * 4 / 3))
     fits = budget.render_need(scene_at(w, n // w), est, need_settings(256))
-    budget.check(fits, 256)
+    budget_check.check(fits, 256)
 
 
 def need_settings(mib):
@@ -128,20 +129,20 @@ def test_photons_and_spp_advice_fits():
     sc = scene_at(64, 48)
     est = parse_estimator("paper-multi", sc)
     st = RenderSettings(photons=30000, memory_budget_mib=200)
-    with pytest.raises(budget.BudgetError) as e:
-        budget.check(budget.render_need(sc, est, st), 200)
+    with pytest.raises(budget_check.BudgetError) as e:
+        budget_check.check(budget.render_need(sc, est, st), 200)
     n = number_after(str(e.value), "--photons to at most ")
     assert 0 < n < 30000
-    budget.check(budget.render_need(sc, est, replace(st, photons=n)), 200)
-    with pytest.raises(budget.BudgetError):
-        budget.check(budget.render_need(sc, est, replace(st, photons=n + 100)), 200)
+    budget_check.check(budget.render_need(sc, est, replace(st, photons=n)), 200)
+    with pytest.raises(budget_check.BudgetError):
+        budget_check.check(budget.render_need(sc, est, replace(st, photons=n + 100)), 200)
     big = scene_at(512, 384)
     st = RenderSettings(photons=100, spp=64, memory_budget_mib=512)
-    with pytest.raises(budget.BudgetError) as e:
-        budget.check(budget.render_need(big, parse_estimator("planes", big), st), 512)
+    with pytest.raises(budget_check.BudgetError) as e:
+        budget_check.check(budget.render_need(big, parse_estimator("planes", big), st), 512)
     k = number_after(str(e.value), "--spp to at most ")
     assert 1 <= k < 64
-    budget.check(budget.render_need(big, parse_estimator("planes", big), replace(st, spp=k)),
+    budget_check.check(budget.render_need(big, parse_estimator("planes", big), replace(st, spp=k)),
                  512)
 
 
@@ -149,25 +150,26 @@ def test_photon_limit_for_the_window_slider():
     sc = scene_at(64, 48)
     ests = [parse_estimator("paper-multi", sc), parse_estimator("planes", sc)]
     st = RenderSettings()
-    limits = [budget.photon_limit(sc, ests, st, budget_mib=m) for m in (768, 1024, 2048, 4096)]
+    budgets = (768, 1024, 2048, 4096)
+    limits = [budget_check.photon_limit(sc, ests, st, budget_mib=m) for m in budgets]
     assert limits == sorted(limits) and 0 < limits[0] < limits[-1], limits
-    for m, n in zip((768, 1024, 2048, 4096), limits, strict=True):
+    for m, n in zip(budgets, limits, strict=True):
         need = budget.progressive_need(sc, ests, replace(st, photons=n), inspect=True)
         assert need.total <= m * MIB
         need = budget.progressive_need(sc, ests, replace(st, photons=n + 1), inspect=True)
         assert need.total > m * MIB
     # The record of a whole pass keeps every photon; without it, batches make any count fit.
-    assert budget.photon_limit(sc, ests, st, budget_mib=2048, inspect=False) == 1 << 62
+    assert budget_check.photon_limit(sc, ests, st, budget_mib=2048, inspect=False) == 1 << 62
     huge = scene_at(20000, 20000)
-    assert budget.photon_limit(huge, ests, st, budget_mib=512) == 0
+    assert budget_check.photon_limit(huge, ests, st, budget_mib=512) == 0
 
 
 def test_limit_without_a_budget_is_the_memory_available():
-    avail = budget.available_memory()
+    avail = budget_check.available_memory()
     assert avail is None or avail > 0
-    cap, phrase = budget.limit(None)
+    cap, phrase = budget_check.limit(None)
     assert (cap is None) == (avail is None)
-    assert budget.limit(300) == (300 * MIB, "--memory-budget 300 MiB")
+    assert budget_check.limit(300) == (300 * MIB, "--memory-budget 300 MiB")
 
 
 def test_format_bytes():

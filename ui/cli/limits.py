@@ -1,11 +1,12 @@
 """Before a command allocates or writes anything: its sizes against the memory limit, its
 outputs against the disk.
 
-The memory model is :mod:`psurf_core.budget`'s (``--memory-budget MIB`` when the command has
-it and it is given, otherwise the memory available on this machine); this module turns its
-refusals into :class:`~ui.cli.common.CliError` (one line, exit code 2) and checks that every
-output folder can be written (a file is created there and removed: catches read-only mounts,
-permissions and a full disk) and has room for what the command will write.
+The memory model is :mod:`psurf_core.budget`'s, checked by :mod:`psurf_core.budget_check`
+against ``--memory-budget MIB`` where the command has it and it is given, otherwise against
+the memory available on this machine; this module turns the refusals into
+:class:`~ui.cli.common.CliError` (one line, exit code 2) and checks that every output folder
+can be written (a file is created there and removed: catches read-only mounts, permissions
+and a full disk) and has room for what the command will write.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ __all__ = ["check_disk", "check_memory", "check_render_sizes", "load_scene_withi
 
 def load_scene_within(path: str, budget_mib: int | None, flag: str = "--memory-budget"):
     """The scene file ``path``, loaded only when its meshes fit while they load."""
-    from psurf_core.budget import BudgetError, check_mesh_files
+    from psurf_core.budget_check import BudgetError, check_mesh_files
 
     try:
         check_mesh_files(path, budget_mib, flag=flag)
@@ -33,8 +34,8 @@ def load_scene_within(path: str, budget_mib: int | None, flag: str = "--memory-b
 
 
 def check_memory(need, budget_mib: int | None, **kw) -> None:
-    """:func:`psurf_core.budget.check` as a :class:`CliError`."""
-    from psurf_core.budget import BudgetError, check
+    """:func:`psurf_core.budget_check.check` as a :class:`CliError`."""
+    from psurf_core.budget_check import BudgetError, check
 
     try:
         check(need, budget_mib, **kw)

@@ -280,7 +280,7 @@ def _session(args, scene, est, settings, radius, ck, ck_dir, identity, passes, t
     written (1, the previous one kept), memory or workers lost (1, the passes saved), an
     output that cannot be written (1, none of them written).
     """
-    from psurf_core.budget import TRIM_SECONDS, release_free_memory
+    from psurf_core.budget_check import TRIM_SECONDS, release_free_memory
     from psurf_core.render import RenderResult, render
 
     acc = ck.accumulator if ck is not None else None
