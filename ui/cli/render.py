@@ -211,7 +211,8 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
 
 
 def cmd_render(args) -> int:
-    """Run ``render``; returns 0, 1 (an internal error) or 130 (Ctrl-C), or raises CliError."""
+    """Run ``render``; returns 0, 1 (the run failed: a disk, the memory, the workers, or an
+    internal error; one line), or 130 (Ctrl-C); raises CliError for a bad input."""
     from psurf_core import RenderSettings
     from psurf_core.checkpoint import render_identity
 
