@@ -14,8 +14,7 @@ import os
 import sys
 import textwrap
 
-from ui.cli.common import CliError, Parser
-from ui.cli.common import load_scene as _load_scene
+from ui.cli.common import CliError, OutputWriteError, Parser
 from ui.cli.common import nonneg_int as _nonneg_int
 from ui.cli.common import note as _note
 from ui.cli.common import npz_writer as _npz_writer
@@ -28,6 +27,7 @@ from ui.cli.common import progress as _progress
 from ui.cli.common import write_all as _write_all
 from ui.cli.compare import add_compare_parser
 from ui.cli.lecture import add_lecture_parser
+from ui.cli.parallel import WorkersLost
 from ui.cli.record import add_record_parsers
 from ui.cli.render import (  # noqa: F401 - DEFAULT_* are part of app's interface
     DEFAULT_PASSES,
@@ -207,10 +207,32 @@ def _window_specs(text: str | None, scene) -> list | None:
     return specs
 
 
+def _check_demo_memory(scene, specs, photons: int) -> None:
+    """The window (its estimators, breakdown stacks, the stages' record of a whole pass, one
+    background process) and the headless renders must fit in the memory available."""
+    from psurf_core import RenderSettings, parse_estimator
+    from psurf_core.budget import progressive_need, render_need
+    from ui.cli.limits import check_memory
+
+    settings = RenderSettings(photons=photons)
+    ests = [parse_estimator(s, scene) for s in (specs or ["planes"])]
+    check_memory(progressive_need(scene, ests, settings, workers=1, breakdown=True,
+                                  inspect=True), None, what="the demo")
+    for name in DEMO_ESTIMATORS:
+        try:
+            est = parse_estimator(name, scene)
+        except Exception:  # skipped with a note by the demo itself
+            continue
+        check_memory(render_need(scene, est, settings), None, what=f"the demo's {name} render")
+
+
 def cmd_demo(args) -> int:
+    from ui.cli.limits import load_scene_within
+
     scene_path = _demo_scene_path(args.scene)
-    scene = _load_scene(scene_path)
+    scene = load_scene_within(scene_path, None)  # meshes checked before they load
     specs = _window_specs(args.estimators, scene)
+    _check_demo_memory(scene, specs, args.photons)
     if args.pixel is not None:
         x, y = args.pixel
         cam = scene.camera
@@ -397,6 +419,13 @@ def main(argv: list[str] | None = None) -> int:
     except (CliError, SceneError) as e:
         print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)
         return 2
+    except (OutputWriteError, WorkersLost) as e:  # a disk or a cluster failed mid-run
+        print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print(f"{PROG}: error: out of memory (lower the resolution, --spp or --photons)",
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted; nothing written", file=sys.stderr)
         return 130

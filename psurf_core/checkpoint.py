@@ -187,10 +187,20 @@ def save_checkpoint(directory: str | os.PathLike, acc: Welford, identity: dict, 
             os.fsync(f.fileno())
         os.replace(tmp, final)
     finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+        _remove_temporary(tmp)
     _fsync_dir(os.fspath(directory))
     return final
+
+
+def _remove_temporary(tmp: str) -> None:
+    """Remove a failed write's temporary file; where that fails too (a read-only mount, the
+    directory gone) the write's own error is the one raised, and the next render in the
+    directory removes the file."""
+    try:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    except OSError:
+        pass
 
 
 def _fsync_dir(directory: str) -> None:

@@ -97,6 +97,67 @@ class Checkpointer:
         return True
 
 
+class CheckpointWriteError(Exception):
+    """Writing ``DIR/checkpoint.npz`` failed (``error``: the ``OSError``); the file in DIR is
+    still the previous checkpoint (``ckpt.on_disk`` passes), or none."""
+
+    def __init__(self, ckpt: Checkpointer, error: OSError):
+        super().__init__(ckpt.directory, error)
+        self.ckpt, self.error = ckpt, error
+
+    def line(self, out: str | None = None) -> str:
+        """The one line saying what failed, what is kept and how to go on."""
+        from psurf_core.checkpoint import checkpoint_path
+
+        d = self.ckpt.directory
+        why = self.error.strerror or " ".join(str(self.error).split()) or "OSError"
+        if not os.path.isdir(d):
+            kept = f"the checkpoint directory {d} no longer exists"
+        elif self.ckpt.on_disk:
+            kept = (f"{d} still holds the previous checkpoint "
+                    f"({plural(self.ckpt.on_disk, 'pass')}; continue with --resume {d} once it "
+                    f"can be written)")
+        else:
+            kept = "no checkpoint was saved"
+        tail = f"; {out} not written" if out else ""
+        return f"cannot write the checkpoint {checkpoint_path(d)} ({why}); {kept}{tail}"
+
+
+def write_checkpoint(ckpt: Checkpointer, write=None) -> bool:
+    """``ckpt.write()`` (or ``write()``), an ``OSError`` raised as
+    :class:`CheckpointWriteError`."""
+    try:
+        return (write or ckpt.write)()
+    except OSError as e:
+        raise CheckpointWriteError(ckpt, e) from e
+
+
+def lock_checkpoint_dir(flag: str, directory: str):
+    """Hold an exclusive lock on ``directory`` for this process (an open descriptor, released
+    when the process ends, even by ``kill -9``), then remove temporary files that a killed
+    writer left there. Returns the descriptor (keep it), or None where locks do not exist."""
+    from psurf_core.checkpoint import CHECKPOINT_FILE
+
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        return None
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise CliError(f"{flag} {directory}: another psurf render is writing checkpoints "
+                       f"there") from None
+    for name in os.listdir(directory):
+        if name.startswith(f".{CHECKPOINT_FILE}.") and name.endswith(".tmp"):
+            try:
+                os.remove(os.path.join(directory, name))
+            except OSError:
+                pass
+    return fd
+
+
 def checkpoint_dir_ok(flag: str, directory: str, must_be_empty: bool) -> None:
     """``directory`` can hold a checkpoint: it is (or can be made) a writable directory."""
     from psurf_core.checkpoint import CHECKPOINT_FILE, checkpoint_path

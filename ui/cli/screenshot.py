@@ -17,7 +17,8 @@ import os
 
 from ui.views.stepper import DEFAULT_PASSES, DEFAULT_PHOTONS, STAGES
 
-from .common import fail, nonneg_int, pixel, positive_int, window_size
+from .common import CliError, fail, nonneg_int, pixel, positive_int, window_size
+from .limits import check_memory, load_scene_within, probe_writable
 
 
 def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
@@ -62,11 +63,26 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def _check_memory(args, scene, specs) -> None:
+    """The window's progressive panels, the stages' record of one whole pass (every photon)
+    and the picture, against the memory available, before anything renders."""
+    from dataclasses import replace
+
+    from psurf_core.budget import picture_bytes, progressive_need
+    from psurf_core.estimators import parse_estimator
+    from psurf_core.render import RenderSettings
+
+    ests = [parse_estimator(s, scene) for s in specs]
+    need = progressive_need(scene, ests, RenderSettings(photons=args.photons), workers=0,
+                            breakdown=args.mode != "render", inspect=True)
+    check_memory(replace(need, extra=need.extra + (picture_bytes(*args.size),)), None,
+                 what="the screenshot")
+
+
 def run_screenshot(args) -> int:
     """Run ``screenshot``; returns 0, or 2 after one ``psurf: error:`` line."""
     from psurf_core.estimators import parse_estimator
     from psurf_core.scene import SceneError
-    from psurf_core.scene_io import load_scene
     from psurf_core.techniques import UnknownTechnique
 
     out = args.out
@@ -84,11 +100,11 @@ def run_screenshot(args) -> int:
             return fail(f"--estimators {args.estimators}: must be a comma-separated list of "
                          "estimator specs")
     try:
-        scene = load_scene(args.scene)
+        scene = load_scene_within(args.scene, None)  # meshes checked before they load
         est = parse_estimator(specs[0], scene)
         for extra in specs[1:]:
             parse_estimator(extra, scene)
-    except (SceneError, UnknownTechnique) as e:
+    except (SceneError, UnknownTechnique, CliError) as e:
         return fail(str(e))
     if est.reference:
         flag = "--estimators" if args.estimators is not None else "--estimator"
@@ -102,6 +118,14 @@ def run_screenshot(args) -> int:
     if args.pass_index >= args.passes:
         return fail(f"--pass {args.pass_index}: the image panels hold passes "
                      f"0..{args.passes - 1} (--passes {args.passes})")
+    try:
+        _check_memory(args, scene, specs)
+    except CliError as e:
+        return fail(str(e))
+    try:
+        probe_writable("--out", out, d)
+    except CliError as e:
+        return fail(str(e))
     try:
         from ui.views._vtk import pv
 
