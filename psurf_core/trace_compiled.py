@@ -31,83 +31,17 @@ they inline: editing ``trace.py`` or ``trace_shadow.py`` recompiles).
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 
 from . import trace as ref
+from . import trace_buffers as buffers
+from . import trace_emit_compiled as emission
 from . import trace_shadow as shadow
 from .kernels.jit import kernel, twin
-from .scene import AreaLight, MeshLight, PointLight
-
-#: Columns of a step record (one row per sampled segment): ``t``, ``w`` (3), clip (2).
-REC_T, REC_W, REC_CLIP, REC_COLS = 0, 1, 4, 6
+from .trace_buffers import REC_CLIP, REC_T, REC_W
 
 
 # --------------------------------------------------------------------------- twins
-@twin(ref.direction_about)
-def direction_about(axis, cos_theta, cos_phi, sin_phi):  # pragma: no cover - compiled
-    a0, a1, a2 = axis
-    sign = 1.0 if a2 >= 0.0 else -1.0  # sampling.orthonormal_basis (Duff et al.)
-    a = -1.0 / (sign + a2)
-    b = a0 * a1 * a
-    b10, b11, b12 = 1.0 + sign * (a0 * a0) * a, sign * b, -sign * a0
-    b20, b21, b22 = b, sign + (a1 * a1) * a, -a1
-    s2 = 1.0 - cos_theta * cos_theta
-    sin_theta = np.sqrt(s2 if s2 > 0.0 else 0.0)
-    p = sin_theta * cos_phi
-    q = sin_theta * sin_phi
-    return (p * b10 + q * b20 + cos_theta * a0,
-            p * b11 + q * b21 + cos_theta * a1,
-            p * b12 + q * b22 + cos_theta * a2)
-
-
-@twin(ref.uniform_direction)
-def uniform_direction(u_z, cos_phi, sin_phi):  # pragma: no cover - compiled
-    z = 1.0 - 2.0 * u_z
-    s2 = 1.0 - z * z
-    r = np.sqrt(s2 if s2 > 0.0 else 0.0)
-    return r * cos_phi, r * sin_phi, z
-
-
-@twin(ref.cosine_direction)
-def cosine_direction(normal, u_c, cos_phi, sin_phi):  # pragma: no cover - compiled
-    return ref.direction_about(normal, np.sqrt(u_c), cos_phi, sin_phi)
-
-
-@twin(ref.parallelogram_point)
-def parallelogram_point(corner, edge_u, edge_v, u):  # pragma: no cover - compiled
-    return (corner[0] + u[0] * edge_u[0] + u[1] * edge_v[0],
-            corner[1] + u[0] * edge_u[1] + u[1] * edge_v[1],
-            corner[2] + u[0] * edge_u[2] + u[1] * edge_v[2])
-
-
-@twin(ref.triangle_point)
-def triangle_point(tri, u_s, u_r):  # pragma: no cover - compiled
-    v0, v1, v2 = tri  # 3-tuples
-    su = np.sqrt(u_s)
-    b0, b1 = 1.0 - su, u_r * su
-    x = (v0[0] + b0 * (v1[0] - v0[0]) + b1 * (v2[0] - v0[0]),
-         v0[1] + b0 * (v1[1] - v0[1]) + b1 * (v2[1] - v0[1]),
-         v0[2] + b0 * (v1[2] - v0[2]) + b1 * (v2[2] - v0[2]))
-    return (b0, b1), x
-
-
-@twin(ref.search_right)
-def search_right(cdf, u):  # pragma: no cover - compiled
-    # Bisection in numpy's order (NaN after every number); numpy's own search took ~170 ns
-    # per random key here.
-    lo, hi = 0, cdf.shape[0]
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        c = cdf[mid]
-        if u < c or (c != c and u == u):
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
 @twin(ref.phase_cosine)
 def phase_cosine(g, u):  # pragma: no cover - compiled
     if abs(g) < ref.sampling.HG_ISOTROPIC_G:
@@ -164,142 +98,6 @@ def scattered_weight(beta, q, albedo):  # pragma: no cover - compiled
     return b0 * albedo, b1 * albedo, b2 * albedo
 
 
-# --------------------------------------------------------------------------- emission
-@kernel
-def emit_point(u_z, cos_phi, sin_phi, w_out):  # pragma: no cover - compiled
-    """``uniform_direction`` per photon. (M,) variates; ``w_out`` (M, 3), written."""
-    for i in range(u_z.shape[0]):
-        w_out[i, 0], w_out[i, 1], w_out[i, 2] = ref.uniform_direction(u_z[i], cos_phi[i],
-                                                                      sin_phi[i])
-
-
-@kernel
-def emit_area(u, u_c, cos_phi, sin_phi, corner, edge_u, edge_v, normal, x_out,
-              w_out):  # pragma: no cover - compiled
-    """``parallelogram_point`` and ``cosine_direction`` per photon.
-
-    Parameters
-    ----------
-    u : (M, 2) float
-        Parallelogram coordinates.
-    u_c, cos_phi, sin_phi : (M,) float
-    corner, edge_u, edge_v, normal : (3,) float
-    x_out, w_out : (M, 3) float
-        Written.
-    """
-    nl = (normal[0], normal[1], normal[2])
-    c, eu, ev = (corner[0], corner[1], corner[2]), (edge_u[0], edge_u[1], edge_u[2]), \
-        (edge_v[0], edge_v[1], edge_v[2])
-    for i in range(u.shape[0]):
-        x_out[i, 0], x_out[i, 1], x_out[i, 2] = ref.parallelogram_point(c, eu, ev,
-                                                                        (u[i, 0], u[i, 1]))
-        w_out[i, 0], w_out[i, 1], w_out[i, 2] = ref.cosine_direction(nl, u_c[i], cos_phi[i],
-                                                                     sin_phi[i])
-
-
-@kernel
-def emit_mesh(k, u_s, u_r, u_c, cos_phi, sin_phi, triangles, normals, bary_out, x_out, n_out,
-              w_out):  # pragma: no cover - compiled
-    """``triangle_point`` and ``cosine_direction`` about the triangle's normal per photon.
-
-    Parameters
-    ----------
-    k : (M,) int
-        Triangle of each photon.
-    u_s, u_r, u_c, cos_phi, sin_phi : (M,) float
-    triangles : (F, 3, 3) float
-    normals : (F, 3) float
-    bary_out : (M, 2) float
-    x_out, n_out, w_out : (M, 3) float
-        Written.
-    """
-    for i in range(k.shape[0]):
-        f = k[i]
-        tri = ((triangles[f, 0, 0], triangles[f, 0, 1], triangles[f, 0, 2]),
-               (triangles[f, 1, 0], triangles[f, 1, 1], triangles[f, 1, 2]),
-               (triangles[f, 2, 0], triangles[f, 2, 1], triangles[f, 2, 2]))
-        (bary_out[i, 0], bary_out[i, 1]), (x_out[i, 0], x_out[i, 1], x_out[i, 2]) = \
-            ref.triangle_point(tri, u_s[i], u_r[i])
-        nk = (normals[f, 0], normals[f, 1], normals[f, 2])
-        n_out[i, 0], n_out[i, 1], n_out[i, 2] = nk
-        w_out[i, 0], w_out[i, 1], w_out[i, 2] = ref.cosine_direction(nk, u_c[i], cos_phi[i],
-                                                                     sin_phi[i])
-
-
-@kernel
-def search(cdf, u, out):  # pragma: no cover - compiled
-    """``out[i] = min(search_right(cdf, u[i]), K - 1)``: ``trace._discrete``'s index."""
-    last = cdf.shape[0] - 1
-    for i in range(u.shape[0]):
-        out[i] = min(ref.search_right(cdf, u[i]), last)
-
-
-def _discrete(pmf, rng, n):
-    """``trace._discrete`` with the compiled search. (n,) intp."""
-    u = rng.random(n)
-    if len(pmf) == 1:
-        return np.zeros(n, dtype=np.intp)
-    cdf = np.cumsum(pmf)
-    cdf /= cdf[-1]
-    k = np.empty(n, dtype=np.intp)
-    search(cdf, u, k)
-    return k
-
-
-def _azimuth(r):
-    """``cos`` and ``sin`` of ``2 pi r`` (numpy's), in place of ``r`` and a new array."""
-    np.multiply(r, 2.0 * np.pi, out=r)
-    s = np.sin(r)
-    return np.cos(r, out=r), s
-
-
-def emit(scene, rng, n: int) -> dict:
-    """``trace.emit`` (same draws, same values, same dict) with compiled per-photon loops.
-    The outputs are written in place where one light emits every photon."""
-    pmf = scene.light_pmf
-    light = _discrete(pmf, rng, n)
-    x0, w1, normal, beta = (np.empty((n, 3)) for _ in range(4))
-    uv = np.zeros((n, 2))
-    tri = np.full(n, -1, dtype=np.int64)
-    for li, lt in enumerate(scene.lights):
-        sel = np.flatnonzero(light == li)
-        m = sel.size
-        if m == 0:
-            continue
-        whole = m == n
-        rows = slice(None) if whole else sel
-        xo, wo = (x0, w1) if whole else (np.empty((m, 3)), np.empty((m, 3)))
-        beta[rows] = lt.power_rgb / pmf[li]
-        if isinstance(lt, PointLight):
-            r = rng.random(2 * m)
-            emit_point(r[:m], *_azimuth(r[m:]), wo)
-            xo[:] = lt.position
-            normal[rows] = lt.axis
-        elif isinstance(lt, AreaLight):
-            r = rng.random(4 * m)
-            u = r[: 2 * m].reshape(m, 2)
-            emit_area(u, r[2 * m : 3 * m], *_azimuth(r[3 * m :]), lt.corner, lt.edge_u,
-                      lt.edge_v, lt.normal, xo, wo)
-            uv[rows] = u
-            normal[rows] = lt.normal
-        elif isinstance(lt, MeshLight):
-            k = _discrete(lt.areas / lt.area, rng, m)
-            r = rng.random(4 * m)
-            bo, no = (uv, normal) if whole else (np.empty((m, 2)), np.empty((m, 3)))
-            emit_mesh(k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], *_azimuth(r[3 * m :]),
-                      np.ascontiguousarray(lt.triangles, dtype=float),
-                      np.ascontiguousarray(lt.normals, dtype=float), bo, xo, no, wo)
-            tri[sel] = k
-            if not whole:
-                uv[sel], normal[sel] = bo, no
-        else:  # pragma: no cover - the scene loader admits no other light
-            raise TypeError(f"unknown light {lt!r}")
-        if not whole:
-            x0[sel], w1[sel] = xo, wo
-    return dict(light=light, light_pmf=pmf[light], light_uv=uv, tri=tri, light_normal=normal,
-                x0=x0, w1=w1, beta=beta)
-
-
 # --------------------------------------------------------------------------- depth steps
 @kernel
 def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u, box,
@@ -328,7 +126,7 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
         ``bmin, bmax, lo, hi`` (``trace.inside``'s slackened bounds).
     ok_prev, ok_cur : (N,) bool
         ``prefix_ok`` of the start and end vertex; ``ok_cur`` false on entry, written here
-        (for an ``UNSURE`` segment, rewritten by ``trace_shadow.resolve``).
+        but for the near segments (``trace_shadow.shade``, ``resolve``).
     select : bool
         Select segment ``j + 1``'s photons (else keep every row).
     ok_look : (N,) bool
@@ -343,7 +141,8 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     near_photon : (P,) int64
     near_a, near_b : (P, 3) float
     near_inside : (P,) bool
-        The near segments (``trace_shadow.classify``): photon, start, end, end in the box.
+        The near segments (box meets a blocker's padded box; every one when ``test_all``):
+        photon, start, end, end in the box.
     blockers : (B, trace_shadow.COLS) float
     test_all : bool
         The blocker rows and flag of ``trace_shadow.table``.
@@ -354,12 +153,10 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
         Photons selected for segment ``j + 1``.
     nn : int
         Near segments listed.
-    unsure : bool
-        Whether ``Blockers.occluded`` must run on them (some verdict is ``UNSURE``).
     """
     bmin, bmax = (box[0, 0], box[0, 1], box[0, 2]), (box[1, 0], box[1, 1], box[1, 2])
     lo, hi = (box[2, 0], box[2, 1], box[2, 2]), (box[3, 0], box[3, 1], box[3, 2])
-    k, nn, unsure = 0, 0, False
+    k, nn = 0, 0
     for i in range(m):
         p = idx[i]
         a = (x[i, 0], x[i, 1], x[i, 2])
@@ -375,21 +172,23 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
         rec[r, REC_CLIP], rec[r, REC_CLIP + 1] = ref.segment_clip(a, d, t, bmin, bmax)
         if ok_prev[p]:
             inb = ref.inside(b, lo, hi)
-            near, verdict = shadow.classify(a, b, blockers, test_all)
-            if near:  # listed for Blockers.occluded, in case the depth is unsure
+            near = test_all  # its box meets a blocker's padded box: trace_shadow.shade
+            for kb in range(blockers.shape[0]):
+                near = near or shadow.meets(a, b, blockers, kb)
+            if near:
                 near_photon[nn] = p
                 near_a[nn, 0], near_a[nn, 1], near_a[nn, 2] = a
                 near_b[nn, 0], near_b[nn, 1], near_b[nn, 2] = b
                 near_inside[nn] = inb
                 nn += 1
-                unsure = unsure or verdict == shadow.UNSURE
-            ok_cur[p] = inb and verdict == shadow.CLEAR
+            else:
+                ok_cur[p] = inb
         if not select or ref.survives(ok_look[p], u_next[i], q_next):
             idx[k] = p
             x[k, 0], x[k, 1], x[k, 2] = b
             w[k, 0], w[k, 1], w[k, 2] = d
             k += 1
-    return k, nn, unsure
+    return k, nn
 
 
 @kernel
@@ -443,57 +242,12 @@ def assemble(x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas
                 clips[p, s, 0] = clips[p, s, 1] = 0.0
             alives[p, s] = run
             xs[p, s + 1, 0], xs[p, s + 1, 1], xs[p, s + 1, 2] = v
-        for s in range(d + 1):
+    for s in range(d + 1):  # vertex-major reads: contiguous (photon-major: 1.4 ms more)
+        for p in range(n):
             prefix_ok[p, s] = oks[s, p]
 
 
 # --------------------------------------------------------------------------- the driver
-#: Photons up to which a thread keeps its workspace between calls (render's batches are
-#: ``render.PHOTON_BATCH`` = 32768); larger calls use a workspace of their own.
-KEEP_PHOTONS = 1 << 16
-
-_local = threading.local()
-
-
-class Workspace:
-    """Scratch arrays of one trace: the state and variates of up to ``n`` photons,
-    ``prefix_ok`` of ``depth + 1`` vertices, the step records (grown on demand) and the
-    segments left to ``Blockers.occluded``. Nothing in it is returned to the caller."""
-
-    def __init__(self, n: int, depth: int):
-        self.n, self.depth = n, depth
-        self.idx = np.empty(n, dtype=np.int64)
-        self.x, self.w = np.empty((n, 3)), np.empty((n, 3))
-        self.r = np.empty(3 * n)  # phase cosine, azimuth, flight variates
-        self.sin, self.u = np.empty(n), np.empty(n)
-        self.oks = np.empty((depth + 1, n), dtype=bool)
-        self.near_photon = np.empty(n, dtype=np.int64)
-        self.near_a, self.near_b = np.empty((n, 3)), np.empty((n, 3))
-        self.near_inside = np.empty(n, dtype=bool)
-        self.rec_idx = np.empty(max(8 * n, 1), dtype=np.int64)
-        self.rec = np.empty((max(8 * n, 1), REC_COLS))
-
-    def records(self, rows: int) -> None:
-        """Grow the record buffers to at least ``rows`` rows (kept contents)."""
-        if rows > self.rec_idx.shape[0]:
-            grow = max(2 * self.rec_idx.shape[0], rows)
-            self.rec_idx = np.concatenate([self.rec_idx, np.empty(grow - self.rec_idx.size,
-                                                                  dtype=np.int64)])
-            self.rec = np.concatenate([self.rec, np.empty((grow - self.rec.shape[0], REC_COLS))])
-
-
-def workspace(n: int, depth: int) -> Workspace:
-    """This thread's workspace when it is large enough (replaced by a larger one up to
-    ``KEEP_PHOTONS`` photons), else a new one for this call."""
-    ws = getattr(_local, "ws", None)
-    if ws is not None and ws.n >= n and ws.depth >= depth:
-        return ws
-    ws = Workspace(max(n, ws.n if ws else 0), max(depth, ws.depth if ws else 0))
-    if ws.n <= KEEP_PHOTONS:
-        _local.ws = ws
-    return ws
-
-
 def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
     """``trace.trace`` compiled (same draws, same arrays); see the module docstring.
 
@@ -512,11 +266,14 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
     bmax = np.asarray(med.bounds_max, dtype=float)
     box = np.stack([bmin, bmax, bmin - ref.BOX_SLACK, bmax + ref.BOX_SLACK])
     rows, test_all = shadow.table(blockers)
-    ws = workspace(n, depth)
-    e = emit(scene, rng, n)
+    ws = buffers.workspace(n, depth)
+    keep = n <= buffers.KEEP_PHOTONS  # outputs in recycled blocks (trace_buffers)
+    out = _outputs(keep, [(k, (n, *shape), dt) for k, (shape, dt) in emission.FIELDS.items()
+                          if k not in ("x0", "w1", "beta")])
+    e = emission.emit(scene, rng, n, dict(out, x0=ws.x0[:n], w1=ws.w[:n], beta=ws.beta0[:n]))
     idx, x, w, oks, r = ws.idx, ws.x, ws.w, ws.oks, ws.r
     idx[:n] = np.arange(n)
-    x[:n], w[:n] = e["x0"], e["w1"]
+    x[:n] = e["x0"]
     oks[0, :n] = True
     m, qs, rec_off, empty = n, [1.0], [0], r[:0]
     for j in range(1, depth + 1):
@@ -526,7 +283,7 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         lg = rj[nr - m :]
         np.log1p(np.negative(lg, out=lg), out=lg)
         if j > 1:
-            cphi, sphi = _azimuth(rj[m : 2 * m])
+            cphi, sphi = emission.azimuth(rj[m : 2 * m])
         else:
             cphi = sphi = empty
         # Then segment j + 1's roulette variates (the reference draws them next).
@@ -537,12 +294,12 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         ws.records(off + m)
         ok = oks[j]
         ok[:n] = False
-        k, nn, unsure = step(m, j > 1, med.phase.g, med.sigma_t, idx, x, w, rj[:m], cphi,
-                             sphi, lg, box, oks[j - 1], ok, select,
-                             oks[max(j + 1 - ref.LOOKBACK, 0)], u_next, q_next, ws.rec_idx,
-                             ws.rec, off, ws.near_photon, ws.near_a, ws.near_b,
-                             ws.near_inside, rows, test_all)
-        if unsure:
+        k, nn = step(m, j > 1, med.phase.g, med.sigma_t, idx, x, w, rj[:m], cphi, sphi, lg,
+                     box, oks[j - 1], ok, select, oks[max(j + 1 - ref.LOOKBACK, 0)], u_next,
+                     q_next, ws.rec_idx, ws.rec, off, ws.near_photon, ws.near_a, ws.near_b,
+                     ws.near_inside, rows, test_all)
+        if nn and shadow.shade(nn, ws.near_a, ws.near_b, ws.near_inside, rows, test_all, ok,
+                               ws.near_photon, ws.verdict):
             shadow.resolve(ws.near_photon[:nn], ws.near_a[:nn], ws.near_b[:nn],
                            ws.near_inside[:nn], blockers, ok)
         rec_off.append(off + m)
@@ -551,13 +308,20 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         qs.append(q_next)
         m = k
     d = len(rec_off) - 1
-    xs = np.empty((n, d + 1, 3))
-    wo, betas = np.empty((n, d, 3)), np.empty((n, d, 3))
-    ts, alives, clips = np.empty((n, d)), np.empty((n, d), dtype=bool), np.empty((n, d, 2))
-    prefix_ok = np.empty((n, d + 1), dtype=bool)
+    p = _outputs(keep, [("x", (n, d + 1, 3), np.float64), ("w", (n, d, 3), np.float64),
+                        ("t", (n, d), np.float64), ("beta", (n, d, 3), np.float64),
+                        ("alive", (n, d), np.bool_), ("clip", (n, d, 2), np.float64),
+                        ("prefix_ok", (n, d + 1), np.bool_)])
     assemble(e["x0"], e["beta"], np.array(qs[:d]), med.albedo, oks, ws.rec_idx, ws.rec,
-             np.array(rec_off, dtype=np.int64), xs, wo, ts, betas, alives, clips, prefix_ok)
-    return ref.PhotonPaths(n_emitted=n, light=e["light"], light_pmf=e["light_pmf"],
-                           light_uv=e["light_uv"], tri=e["tri"],
-                           light_normal=e["light_normal"], x=xs, w=wo, t=ts, beta=betas,
-                           alive=alives, prefix_ok=prefix_ok, clip=clips)
+             np.array(rec_off, dtype=np.int64), p["x"], p["w"], p["t"], p["beta"],
+             p["alive"], p["clip"], p["prefix_ok"])
+    return ref.PhotonPaths(n_emitted=n, **{k: e[k] for k in out}, **p)
+
+
+def _outputs(recycled: bool, specs) -> dict:
+    """Uninitialised arrays ``name -> (shape, dtype)``: views of one block of this thread's
+    ``trace_buffers.Recycler``, or (for calls too large to keep) new arrays."""
+    if not recycled:
+        return {name: np.empty(shape, dtype=dt) for name, shape, dt in specs}
+    arrays = buffers.recycler().arrays([(shape, dt) for _, shape, dt in specs])
+    return {name: a for (name, _, _), a in zip(specs, arrays, strict=True)}

@@ -35,7 +35,7 @@ import numpy as np
 
 from .constants import PARALLEL_EPS, SHADOW_EPS
 from .geometry import _BOUNDS_PAD, Blockers
-from .kernels.jit import inline
+from .kernels.jit import inline, kernel
 
 #: Unit roundoff of float64.
 U = 2.0**-53
@@ -137,12 +137,6 @@ def in_range(t, et, t_max, et_max):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- the tests
-@inline
-def vec(rows, k, col):  # pragma: no cover - compiled
-    """Columns ``col .. col + 2`` of row ``k`` as a 3-tuple (no array view per segment)."""
-    return rows[k, col], rows[k, col + 1], rows[k, col + 2]
-
-
 @inline
 def crosses_plane(a, b, ln, eln, plane):  # pragma: no cover - compiled
     """``geometry._crosses_plane`` of segment ``a -> b`` (3-tuples; ``ln = |b - a|`` within
@@ -274,73 +268,110 @@ def quad_hit(a, d, ed, t_max, et_max, corner, n, eu, ev, m):  # pragma: no cover
 
 
 @inline
-def hit_any(a, b, ln, eln, rows):  # pragma: no cover - compiled
-    """``isfinite(Blockers.first_hit(a, d, SHADOW_EPS, |b - a| - SHADOW_EPS))`` with
-    ``d = (b - a) / |b - a|``: any blocker hit inside the segment."""
-    if ln < 1.9999 * SHADOW_EPS:
-        return NO  # t_max <= t_min: nothing is kept
-    d = ((b[0] - a[0]) / ln, (b[1] - a[1]) / ln, (b[2] - a[2]) / ln)
-    ed = (6.0 * U * abs(d[0]), 6.0 * U * abs(d[1]), 6.0 * U * abs(d[2]))
-    t_max = ln - SHADOW_EPS
-    et_max = eln + U * ln
-    res = NO
-    for k in range(rows.shape[0]):
-        kind = rows[k, KIND]
-        if kind == SPHERE:
-            hit = sphere_hit(a, d, ed, t_max, et_max, vec(rows, k, CENTER), rows[k, R2])
-        elif kind == BOX:
-            hit = box_hit(a, d, ed, t_max, et_max, vec(rows, k, BOX_MIN), vec(rows, k, BOX_MAX))
-        elif kind == QUAD:
-            m = (rows[k, GRAM_INV], rows[k, GRAM_INV + 1], rows[k, GRAM_INV + 2],
-                 rows[k, GRAM_INV + 3])
-            hit = quad_hit(a, d, ed, t_max, et_max, vec(rows, k, CORNER), vec(rows, k, NORMAL),
-                           vec(rows, k, EU), vec(rows, k, EV), m)
-        else:
-            hit = MAYBE  # triangles: Embree's float32 hits, then the numpy test
-        res = or3(res, hit)
-    return res
+def meets(a, b, rows, k):  # pragma: no cover - compiled
+    """Does the box of segment ``a -> b`` meet blocker ``k``'s padded box
+    (``Blockers.occluded``'s first reject, the same comparisons)?"""
+    pad = _BOUNDS_PAD
+    return (min(a[0], b[0]) <= rows[k, HI] + pad and max(a[0], b[0]) >= rows[k, LO] - pad
+            and min(a[1], b[1]) <= rows[k, HI + 1] + pad
+            and max(a[1], b[1]) >= rows[k, LO + 1] - pad
+            and min(a[2], b[2]) <= rows[k, HI + 2] + pad
+            and max(a[2], b[2]) >= rows[k, LO + 2] - pad)
 
 
 @inline
-def classify(a, b, rows, test_all):  # pragma: no cover - compiled
-    """What ``Blockers.occluded`` answers for the segment ``a -> b`` (3-tuples), given the
-    blocker ``rows`` (:func:`table`).
+def params(rows, k):  # pragma: no cover - compiled
+    """Row ``k``'s kind-specific columns (``CENTER ..``) as a 16-tuple."""
+    c = CENTER
+    return (rows[k, c], rows[k, c + 1], rows[k, c + 2], rows[k, c + 3], rows[k, c + 4],
+            rows[k, c + 5], rows[k, c + 6], rows[k, c + 7], rows[k, c + 8], rows[k, c + 9],
+            rows[k, c + 10], rows[k, c + 11], rows[k, c + 12], rows[k, c + 13],
+            rows[k, c + 14], rows[k, c + 15])
+
+
+@inline
+def blocker_hit(kind, a, d, ed, t_max, et_max, q):  # pragma: no cover - compiled
+    """The test of one blocker of ``kind`` with the columns ``q`` (:func:`params`)."""
+    if kind == SPHERE:
+        return sphere_hit(a, d, ed, t_max, et_max, (q[0], q[1], q[2]), q[R2 - CENTER])
+    if kind == BOX:
+        return box_hit(a, d, ed, t_max, et_max, (q[0], q[1], q[2]), (q[3], q[4], q[5]))
+    if kind == QUAD:
+        o = CORNER - CENTER
+        return quad_hit(a, d, ed, t_max, et_max, (q[o], q[o + 1], q[o + 2]),
+                        (q[o + 9], q[o + 10], q[o + 11]), (q[o + 3], q[o + 4], q[o + 5]),
+                        (q[o + 6], q[o + 7], q[o + 8]), (q[o + 12], q[o + 13], q[o + 14],
+                                                         q[o + 15]))
+    return MAYBE  # triangles: Embree's float32 hits, then the numpy test
+
+
+@kernel
+def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict):  # pragma: no cover - compiled
+    """What ``Blockers.occluded`` answers for each near segment ``a[i] -> b[i]`` (one whose
+    box meets a blocker's padded box): whether ``occluded`` tests it exactly (it meets a
+    non-planar blocker's box, or crosses a planar one's plane: :func:`crosses_plane`), then
+    ``Blockers.first_hit`` between ``SHADOW_EPS`` and ``|b - a| - SHADOW_EPS`` against every
+    blocker (:func:`blocker_hit`).
+
+    Parameters
+    ----------
+    nn : int
+        Segments (the first ``nn`` rows).
+    a, b : (>= nn, 3) float
+        Segment ends (scene units).
+    inside : (>= nn,) bool
+        End inside the medium box.
+    rows : (B, COLS) float
+    test_all : bool
+        :func:`table`'s.
+    ok : (N,) bool
+        ``prefix_ok`` of the end vertex: ``ok[photon[i]] = inside[i]`` and unoccluded,
+        written for every decided segment.
+    photon : (>= nn,) int64
+    verdict : (>= nn,) int64
+        ``CLEAR``, ``BLOCKED`` or ``UNSURE``, written.
 
     Returns
     -------
-    near : bool
-        The segment's box meets a blocker's padded box (``occluded``'s first reject keeps
-        it); every segment when ``test_all``.
-    verdict : int
-        ``CLEAR`` (not occluded), ``BLOCKED`` or ``UNSURE`` (left to ``Blockers.occluded``).
+    bool
+        Some segment is ``UNSURE``.
     """
-    if test_all:
-        return True, UNSURE
-    l0, h0 = min(a[0], b[0]), max(a[0], b[0])
-    l1, h1 = min(a[1], b[1]), max(a[1], b[1])
-    l2, h2 = min(a[2], b[2]), max(a[2], b[2])
-    near, tested = False, NO  # tested: kept by occluded for its exact test
-    pad = _BOUNDS_PAD
-    ln = eln = 0.0
-    for k in range(rows.shape[0]):
-        if (l0 <= rows[k, HI] + pad and h0 >= rows[k, LO] - pad
-                and l1 <= rows[k, HI + 1] + pad and h1 >= rows[k, LO + 1] - pad
-                and l2 <= rows[k, HI + 2] + pad and h2 >= rows[k, LO + 2] - pad):
-            if not near:
-                near = True
-                v0, v1, v2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-                ln = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-                eln = 4.0 * U * ln  # np.linalg.norm: three squares summed, a square root
-            if np.isnan(rows[k, PLANE]):
-                tested = YES
-            elif tested != YES:
-                plane = (rows[k, PLANE], rows[k, PLANE + 1], rows[k, PLANE + 2],
-                         rows[k, PLANE + 3])
-                tested = or3(tested, crosses_plane(a, b, ln, eln, plane))
-    if tested == NO:
-        return near, CLEAR
-    res = and3(tested, hit_any(a, b, ln, eln, rows))
-    return True, (CLEAR if res == NO else BLOCKED if res == YES else UNSURE)
+    unsure = False
+    # Loops over the blocker rows live here, not in the inlined tests: numba keeps a
+    # reference count per segment for an array handed to an inlined loop.
+    for i in range(nn):
+        ai, bi = (a[i, 0], a[i, 1], a[i, 2]), (b[i, 0], b[i, 1], b[i, 2])
+        v0, v1, v2 = bi[0] - ai[0], bi[1] - ai[1], bi[2] - ai[2]
+        ln = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        eln = 4.0 * U * ln  # np.linalg.norm: three squares summed, a square root
+        tested = MAYBE if test_all else NO  # kept by occluded for its exact test
+        for k in range(rows.shape[0]):
+            if tested != YES and meets(ai, bi, rows, k):
+                if np.isnan(rows[k, PLANE]):
+                    tested = YES
+                else:
+                    pl = (rows[k, PLANE], rows[k, PLANE + 1], rows[k, PLANE + 2],
+                          rows[k, PLANE + 3])
+                    tested = or3(tested, crosses_plane(ai, bi, ln, eln, pl))
+        res = tested
+        if tested != NO and not test_all:
+            hit = NO
+            if ln >= 1.9999 * SHADOW_EPS:  # else t_max <= t_min: nothing is kept
+                d = (v0 / ln, v1 / ln, v2 / ln)
+                ed = (6.0 * U * abs(d[0]), 6.0 * U * abs(d[1]), 6.0 * U * abs(d[2]))
+                t_max, et_max = ln - SHADOW_EPS, eln + U * ln
+                for k in range(rows.shape[0]):
+                    if hit != YES:
+                        hit = or3(hit, blocker_hit(rows[k, KIND], ai, d, ed, t_max, et_max,
+                                                   params(rows, k)))
+            res = and3(tested, hit)
+        v = CLEAR if res == NO else BLOCKED if res == YES else UNSURE
+        verdict[i] = v
+        if v == UNSURE:
+            unsure = True
+        else:
+            ok[photon[i]] = inside[i] and v == CLEAR
+    return unsure
 
 
 def resolve(photon, a, b, inside, blockers: Blockers, ok: np.ndarray) -> None:

@@ -18,7 +18,12 @@ from numba import njit
 from trace_scenes import BUILT, BUNDLED, scene
 
 from psurf_core import trace as ref
-from psurf_core import trace_compiled
+from psurf_core import (
+    trace_buffers,
+    trace_compiled,  # noqa: F401 (registers the twins of trace.py)
+    trace_emit,
+    trace_emit_compiled,
+)
 from psurf_core.geometry import blockers_of
 from psurf_core.trace import PhotonPaths, trace
 
@@ -81,19 +86,48 @@ def test_long_paths(name):
 def test_workspace_reuse(monkeypatch):
     """A thread's kept workspace (grown, reused by smaller calls) and a call's own (past
     ``KEEP_PHOTONS``) give the reference's arrays."""
-    monkeypatch.setattr(trace_compiled, "KEEP_PHOTONS", 1500)
-    monkeypatch.setattr(trace_compiled._local, "ws", None, raising=False)
+    monkeypatch.setattr(trace_buffers, "KEEP_PHOTONS", 1500)
+    monkeypatch.setattr(trace_buffers._local, "ws", None, raising=False)
     sc = scene("multi_light")
     for n in (1000, 300, 1400, 2500, 50, 1000):
         _assert_same(f"n={n}", _both(sc, n, n))
-    assert trace_compiled._local.ws.n == 1400
+    assert trace_buffers._local.ws.n == 1400
+
+
+def test_recycled_outputs(monkeypatch):
+    """Returned arrays live in recycled blocks: a block is reused once its arrays (and every
+    view of them) are dropped, never while any is held."""
+    rc = trace_buffers.Recycler()
+    monkeypatch.setattr(trace_buffers._local, "recycler", rc, raising=False)
+    sc = scene("area_occluder")
+    bl = blockers_of(sc)
+    first = trace(sc, 2000, np.random.default_rng(1), blockers=bl)
+    held = first.x[:, 1]  # a view keeps first.x's block
+    copy = {f: getattr(first, f).copy() for f in FIELDS[1:]}
+    held_copy = held.copy()
+    addr = first.x.ctypes.data
+    del first
+    for seed in range(2, 6):
+        p = trace(sc, 2000, np.random.default_rng(seed), blockers=bl)
+        assert p.x.ctypes.data != addr
+        assert held.tobytes() == held_copy.tobytes()
+        for f in FIELDS[1:]:
+            assert getattr(p, f).flags.c_contiguous
+    del held, p
+    again = trace(sc, 2000, np.random.default_rng(1), blockers=bl)
+    for f in FIELDS[1:]:
+        assert getattr(again, f).tobytes() == copy[f].tobytes(), f
+    # Blocks are reused, not piled up: two traces alive at a time need a handful.
+    assert len(rc.blocks) <= rc.keep
+    dropped = trace(sc, 2000, np.random.default_rng(7), blockers=bl).x.ctypes.data
+    assert trace(sc, 2000, np.random.default_rng(8), blockers=bl).x.ctypes.data == dropped
 
 
 @pytest.mark.parametrize("name", BUNDLED + BUILT)
 def test_emit_equals_reference(name):
     sc = scene(name)
     ra, rb = np.random.default_rng(3), np.random.default_rng(3)
-    want, got = ref.emit(sc, ra, 2000), trace_compiled.emit(sc, rb, 2000)
+    want, got = trace_emit.emit(sc, ra, 2000), trace_emit_compiled.emit(sc, rb, 2000)
     assert want.keys() == got.keys()
     for k in want:
         assert got[k].dtype == want[k].dtype and got[k].tobytes() == want[k].tobytes(), k
@@ -104,24 +138,25 @@ def test_emit_equals_reference(name):
 @njit
 def _direction_about(axis, ct, cp, sp, out):
     for i in range(axis.shape[0]):
-        out[i] = ref.direction_about((axis[i, 0], axis[i, 1], axis[i, 2]), ct[i], cp[i], sp[i])
+        a = (axis[i, 0], axis[i, 1], axis[i, 2])
+        out[i] = trace_emit.direction_about(a, ct[i], cp[i], sp[i])
 
 
 @njit
 def _uniform_cosine(u, n, cp, sp, out_u, out_c):
     for i in range(u.shape[0]):
-        out_u[i] = ref.uniform_direction(u[i], cp[i], sp[i])
-        out_c[i] = ref.cosine_direction((n[i, 0], n[i, 1], n[i, 2]), u[i], cp[i], sp[i])
+        out_u[i] = trace_emit.uniform_direction(u[i], cp[i], sp[i])
+        out_c[i] = trace_emit.cosine_direction((n[i, 0], n[i, 1], n[i, 2]), u[i], cp[i], sp[i])
 
 
 @njit
 def _points(corner, eu, ev, uv, tri, out_p, out_b, out_t):
     c, e, f = (corner[0], corner[1], corner[2]), (eu[0], eu[1], eu[2]), (ev[0], ev[1], ev[2])
     for i in range(uv.shape[0]):
-        out_p[i] = ref.parallelogram_point(c, e, f, (uv[i, 0], uv[i, 1]))
+        out_p[i] = trace_emit.parallelogram_point(c, e, f, (uv[i, 0], uv[i, 1]))
         t = ((tri[i, 0, 0], tri[i, 0, 1], tri[i, 0, 2]), (tri[i, 1, 0], tri[i, 1, 1], tri[i, 1, 2]),
              (tri[i, 2, 0], tri[i, 2, 1], tri[i, 2, 2]))
-        out_b[i], out_t[i] = ref.triangle_point(t, uv[i, 0], uv[i, 1])
+        out_b[i], out_t[i] = trace_emit.triangle_point(t, uv[i, 0], uv[i, 1])
 
 
 @njit
@@ -148,7 +183,7 @@ def _segments(x, w, t, bmin, bmax, lo, hi, beta, q, albedo, out_x, out_c, out_in
 @njit
 def _search(cdf, u, out):
     for i in range(u.shape[0]):
-        out[i] = ref.search_right(cdf, u[i])
+        out[i] = trace_emit.search_right(cdf, u[i])
 
 
 def _same(a, b):
@@ -171,12 +206,12 @@ def test_direction_twins():
     cp, sp = np.cos(phi), np.sin(phi)
     out = np.empty((m, 3))
     _direction_about(axis, ct, cp, sp, out)
-    assert _same(out, ref.direction_about(axis, ct, cp, sp))
+    assert _same(out, trace_emit.direction_about(axis, ct, cp, sp))
     u = np.r_[[0.0, 1 - 2**-53, 0.5], rng.random(m - 3)]
     out_u, out_c = np.empty((m, 3)), np.empty((m, 3))
     _uniform_cosine(u, axis, cp, sp, out_u, out_c)
-    assert _same(out_u, ref.uniform_direction(u, cp, sp))
-    assert _same(out_c, ref.cosine_direction(axis, u, cp, sp))
+    assert _same(out_u, trace_emit.uniform_direction(u, cp, sp))
+    assert _same(out_c, trace_emit.cosine_direction(axis, u, cp, sp))
 
 
 def test_point_twins():
@@ -187,8 +222,8 @@ def test_point_twins():
     tri = rng.normal(size=(m, 3, 3))
     out_p, out_b, out_t = np.empty((m, 3)), np.empty((m, 2)), np.empty((m, 3))
     _points(corner, eu, ev, uv, tri, out_p, out_b, out_t)
-    assert _same(out_p, ref.parallelogram_point(corner, eu, ev, uv))
-    bary, x = ref.triangle_point(tri, uv[:, 0], uv[:, 1])
+    assert _same(out_p, trace_emit.parallelogram_point(corner, eu, ev, uv))
+    bary, x = trace_emit.triangle_point(tri, uv[:, 0], uv[:, 1])
     assert _same(out_b, bary) and _same(out_t, x)
 
 
@@ -247,4 +282,4 @@ def test_search_right_is_searchsorted():
             u = np.r_[rng.random(2000), cdf[:50], [0.0, 1.0, np.nan, -1.0, 2.0, np.inf]]
             out = np.empty(u.size, dtype=np.intp)
             _search(cdf, u, out)
-            assert np.array_equal(out, ref.search_right(cdf, u)), (k, cdf[:4])
+            assert np.array_equal(out, trace_emit.search_right(cdf, u)), (k, cdf[:4])

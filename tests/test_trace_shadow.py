@@ -1,7 +1,7 @@
 """``trace_shadow``'s verdicts never contradict ``Blockers.occluded``.
 
-Trace skips ``Blockers.occluded`` where ``trace_shadow.classify`` decides the answer from
-error bounds. A decided verdict must be what ``occluded`` answers in every array it could be
+Trace skips ``Blockers.occluded`` where ``trace_shadow.shade`` decides the answer from error
+bounds. A decided verdict must be what ``occluded`` answers in every array it could be
 called with (BLAS rounds a row's dot products depending on the array). The segments are
 adversarial: through the edges and corners of area lights and boxes within 1e-16 .. 1e-6,
 tangent to spheres, crossing a surface at ``SHADOW_EPS`` from either end, grazing planes,
@@ -24,10 +24,32 @@ from psurf_core.trace import trace
 
 
 @njit
-def _classify(a, b, rows, test_all, near, verdict):
+def _near(a, b, rows, test_all, out):
+    """The step kernel's listing: the segment's box meets a blocker's padded box."""
     for i in range(a.shape[0]):
-        near[i], verdict[i] = sh.classify((a[i, 0], a[i, 1], a[i, 2]),
-                                          (b[i, 0], b[i, 1], b[i, 2]), rows, test_all)
+        ai, bi = (a[i, 0], a[i, 1], a[i, 2]), (b[i, 0], b[i, 1], b[i, 2])
+        near = test_all
+        for k in range(rows.shape[0]):
+            near = near or sh.meets(ai, bi, rows, k)
+        out[i] = near
+
+
+def _classify(blockers, a, b):
+    """Per segment: listed near, and ``shade``'s verdict (``CLEAR`` when not near)."""
+    rows, test_all = sh.table(blockers)
+    near = np.empty(len(a), dtype=bool)
+    _near(a, b, rows, test_all, near)
+    idx = np.flatnonzero(near)
+    verdict = np.full(len(a), sh.CLEAR, dtype=np.int64)
+    v, ok = np.empty(idx.size, dtype=np.int64), np.zeros(idx.size, dtype=bool)
+    inside = np.ones(idx.size, dtype=bool)
+    unsure = sh.shade(idx.size, a[idx], b[idx], inside, rows, test_all, ok,
+                      np.arange(idx.size), v)
+    assert unsure == (v == sh.UNSURE).any()
+    decided = v != sh.UNSURE
+    assert (ok[decided] == (v[decided] == sh.CLEAR)).all()
+    verdict[idx] = v
+    return near, verdict
 
 
 @njit
@@ -58,9 +80,7 @@ def _contexts(n, rng):
 
 
 def _check(blockers, a, b, rng, min_decided=0.0):
-    rows, test_all = sh.table(blockers)
-    near, verdict = np.empty(len(a), dtype=bool), np.empty(len(a), dtype=np.int64)
-    _classify(a, b, rows, test_all, near, verdict)
+    near, verdict = _classify(blockers, a, b)
     decided = verdict != sh.UNSURE
     for idx in _contexts(len(a), rng):
         # ray_parallelogram multiplies inf by 0 for a segment exactly parallel to the light
@@ -70,9 +90,8 @@ def _check(blockers, a, b, rng, min_decided=0.0):
         bad = decided[idx] & (occ != (verdict[idx] == sh.BLOCKED))
         assert not bad.any(), (f"{bad.sum()} verdicts contradict occluded, e.g. "
                                f"a={a[idx][bad][0]!r} b={b[idx][bad][0]!r}")
-    # A segment clear of every blocker's box is never listed (occluded's own reject).
-    far = ~near
-    assert (verdict[far] == sh.CLEAR).all()
+    # A segment clear of every blocker's box is not occluded (occluded's own reject).
+    assert not blockers.occluded(a[~near], b[~near]).any()
     assert decided.mean() >= min_decided, decided.mean()
     return decided.mean(), verdict
 
