@@ -16,6 +16,10 @@ one core; every rate names its own numerator and clock):
   included) is timed as one ``fused`` stage (binning + intersect + evaluate). Its candidate
   pairs are those of ``binning.candidate_pairs`` (the kernel walks the same spans), counted
   untimed, and its pairs found/tested per second divide them by the whole fused time.
+* ``photon_vertices_per_second`` (the ``trace:`` line): ``trace`` alone on ``4 PHOTON_BATCH``
+  photons (or ``--photons``) in render's batches, median of ``--trace-passes`` warm passes
+  (:func:`trace_rate`; the first pass and the range in ``trace``). Each estimator's
+  ``photon_vertices_per_second`` is the rate inside its own pass above.
 * ``hits_per_second``: *evaluated hits* (pairs with a valid root whose contribution, shadow
   tests included, was computed) divided by the whole time spent finding and evaluating them:
   binning + intersect + evaluate + MIS weights + fused.
@@ -254,6 +258,33 @@ def two_process(scene, spec: str, photons: int, passes: int) -> dict:
                                       for o in (one, one_t)))}
 
 
+def trace_rate(scene, photons: int, passes: int) -> dict:
+    """Photon vertices traced per second by ``trace`` alone, in render's batches of
+    ``PHOTON_BATCH`` (the previous batch's paths alive while the next is traced, as in a
+    render): the median of ``passes`` warm passes (pass ``i`` seeded as render's pass ``i``),
+    their range, and the first pass after the kernels loaded (cold memory)."""
+    blockers = blockers_of(scene)
+    trace(scene, 64, np.random.default_rng(0), blockers=blockers)  # kernels load from cache
+    rates, verts = [], []
+    for i in range(passes + 1):
+        _, photon_ss = pass_generators(0, i)
+        n_batches = -(-photons // PHOTON_BATCH)
+        secs, nv = 0.0, 0
+        for b, ss in enumerate(photon_ss.spawn(n_batches)):
+            nb = min(PHOTON_BATCH, photons - b * PHOTON_BATCH)
+            a = time.perf_counter()
+            paths = trace(scene, nb, np.random.default_rng(ss), blockers=blockers)
+            secs += time.perf_counter() - a
+            nv += int(paths.alive.sum())
+        rates.append(nv / secs)
+        verts.append(nv)
+    warm = rates[1:]
+    return {"photons": photons, "passes": passes, "vertices_per_pass": int(np.median(verts)),
+            "photon_vertices_per_second": float(np.median(warm)),
+            "photon_vertices_per_second_range": [float(min(warm)), float(max(warm))],
+            "photon_vertices_per_second_first_pass": float(rates[0])}
+
+
 def planes_threads(scene, photons: int, reps: int) -> dict:
     """``planes`` find+eval hits/s (as :func:`stage_pass` counts and times them) on one
     thread and on all of numba's threads, the median of ``reps`` passes each (the two
@@ -365,6 +396,8 @@ def main(argv=None) -> int:
                     help="estimators of the 1-vs-2-process comparison")
     ap.add_argument("--memory-row-step", type=int, default=32,
                     help="the 10^6-photon memory pass renders every N-th row")
+    ap.add_argument("--trace-passes", type=int, default=5,
+                    help="warm passes of the trace row (median)")
     ap.add_argument("--planes-reps", type=int, default=5,
                     help="passes of the planes threads comparison (median)")
     ap.add_argument("--parallel-passes", type=int, default=8,
@@ -396,9 +429,12 @@ def main(argv=None) -> int:
             if len(r["techniques"]) > 1:
                 print(f"{'':>14}{name:>16}: {pt['pairs']:>9} pairs {pt['hits']:>9} hits | "
                       + " ".join(f"{k} {pt[k]:.2f}" for k in STAGES[1:]))
-    vert = stage_pass(scene, "planes", max(args.photons, 4 * PHOTON_BATCH))
-    print(f"trace: {vert['photon_vertices_per_second']:.3g} vertices/s "
-          f"({vert['vertices']} vertices)")
+    vert = trace_rate(scene, max(args.photons, 4 * PHOTON_BATCH), args.trace_passes)
+    lo, hi = vert["photon_vertices_per_second_range"]
+    print(f"trace: {vert['photon_vertices_per_second']:.3g} vertices/s (median of "
+          f"{vert['passes']} warm passes x {vert['photons']} photons, {lo:.3g}-{hi:.3g}; "
+          f"first pass {vert['photon_vertices_per_second_first_pass']:.3g}; "
+          f"{vert['vertices_per_pass']} vertices per pass)")
     out = {
         "command": cmd,
         "machine": {"cpus": __import__("os").cpu_count(), "python": platform.python_version(),
@@ -408,6 +444,7 @@ def main(argv=None) -> int:
         "hits_per_second": {k: v["hits_per_second"] for k, v in results.items()},
         "pass_hits_per_second": {k: v["pass_hits_per_second"] for k, v in results.items()},
         "photon_vertices_per_second": vert["photon_vertices_per_second"],
+        "trace": vert,
         "estimators": results,
     }
     if "planes" in args.estimators.split(","):

@@ -9,14 +9,18 @@ deepest look-back of any technique is three segments: the generalized planes reb
 
 Two implementations, side by side, with the same names:
 
-* this module, the **numpy reference**: structs of arrays over the active photons, one loop
-  over depth (:func:`emit`, :func:`step`, :func:`assemble`), built from the elementary
-  formulas below (:func:`direction_about`, :func:`phase_cosine`, :func:`free_flight`,
-  :func:`segment_clip`, ...), each vectorized over photons;
-* :mod:`psurf_core.trace_compiled`, what :func:`trace` runs: per-photon compiled loops of the
-  same stages (``emit``, ``step``, ``assemble``, ``trace``), which call each formula's
-  compiled twin: a scalar function registered under the numpy function's name
-  (:func:`psurf_core.kernels.jit.twin`), with the same IEEE operations in the same order.
+* the **numpy reference**, this module and :mod:`psurf_core.trace_emit` (emission): structs
+  of arrays over the active photons, one loop over depth (``emit``, :func:`step`,
+  :func:`assemble`), built from elementary formulas vectorized over photons
+  (``direction_about``, :func:`phase_cosine`, :func:`free_flight`, :func:`segment_clip`, ...);
+* the **compiled path**, :mod:`psurf_core.trace_compiled` and
+  :mod:`psurf_core.trace_emit_compiled`, what :func:`trace` runs: per-photon numba loops of the
+  same stages (``emit``, ``step``, ``assemble``, ``trace``) calling each formula's compiled
+  twin, a scalar function registered under the numpy function's name
+  (:func:`psurf_core.kernels.jit.twin`) with the same IEEE operations in the same order. Its
+  shadow tests (:mod:`psurf_core.trace_shadow`) decide ``Blockers.occluded``'s answer from
+  rounding bounds where it cannot depend on rounding, and its memory is reused between calls
+  (:mod:`psurf_core.trace_buffers`).
 
 Both draw the same random numbers from the generator (the same calls, sizes and order) and
 leave ``cos``, ``sin`` and ``log1p`` to numpy. ``tests/test_trace_reference.py`` holds them

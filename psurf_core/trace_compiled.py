@@ -1,29 +1,30 @@
-"""Trace, compiled: the stages of :mod:`psurf_core.trace` (``emit``, ``step``, ``assemble``,
+"""Trace, compiled: the depth loop of :mod:`psurf_core.trace` (``step``, ``assemble``,
 ``trace``) as per-photon numba loops, and the compiled twin of each of its formulas.
 
 Every formula of ``trace.py`` has a scalar twin here under the same name
-(:func:`psurf_core.kernels.jit.twin`): compiled code calling ``ref.direction_about`` runs the
-twin, Python calling it runs the numpy function. A twin performs the numpy function's IEEE
-operations in the same order (no ``fastmath``, so no fused multiply-add; ``sqrt``,
-``+ - * /`` and comparisons are exactly rounded in both); a (3,) vector is a 3-tuple.
-The random numbers and ``cos``, ``sin``, ``log1p`` stay numpy's (numba's would be other
-implementations): they are computed here in place into scratch buffers, between the kernels.
+(:func:`psurf_core.kernels.jit.twin`; emission's are in :mod:`psurf_core.trace_emit_compiled`):
+compiled code calling ``ref.phase_cosine`` runs the twin, Python calling it runs the numpy
+function. A twin performs the numpy function's IEEE operations in the same order (no
+``fastmath``, so no fused multiply-add; ``sqrt``, ``+ - * /`` and comparisons are exactly
+rounded in both); a (3,) vector is a 3-tuple. The random numbers and ``cos``, ``sin``,
+``log1p`` stay numpy's (numba's would be other implementations): they are computed in place
+in scratch buffers between the kernels.
 
-Where the numpy reference and this path differ in work, not in values:
+Where this path differs from the numpy reference in work, not in values:
 
 * **one kernel per depth**: :func:`step` samples segment ``j``, records it, and already
   selects the photons of segment ``j + 1`` (roulette, look-back): the selection reads
   ``prefix_ok`` of vertex ``j + 1 - LOOKBACK <= j - 1``, final before segment ``j``, and its
-  roulette variates follow segment ``j``'s draws in the stream, so they are drawn first;
+  roulette variates follow segment ``j``'s in the stream, so they are drawn first;
 * **records, then one scatter**: each depth writes compact step records (``REC_*`` columns);
   :func:`assemble` writes the photon-major ``PhotonPaths`` arrays once, recomputing every
   vertex (``advance``) and weight (``scattered_weight``) with the twins;
-* **scratch reuse**: state, variates, records and ``prefix_ok`` live in a per-thread
-  workspace kept between calls (no page faults on fresh memory per batch);
-* **shadow tests**: :mod:`psurf_core.trace_shadow` decides, per segment, what
-  ``Blockers.occluded`` would answer, where rounding cannot change the answer; only when
-  some segment of a depth is undecided is ``Blockers.occluded`` called, on exactly the rows
-  the reference's call would keep for its own exact test.
+* **shadow tests**: a segment whose box meets a blocker's padded box is *near*;
+  ``trace_shadow.shade`` decides what ``Blockers.occluded`` answers for the near segments
+  from rounding bounds, and only a depth with an undecided one calls ``Blockers.occluded``,
+  on all its near segments: exactly the rows the reference's call keeps for its exact test;
+* **memory**: scratch in a per-thread workspace, outputs in recycled blocks
+  (:mod:`psurf_core.trace_buffers`): no page faults on fresh memory per batch.
 
 Compiled with :func:`psurf_core.kernels.jit.kernel` (cached on disk, keyed by the sources
 they inline: editing ``trace.py`` or ``trace_shadow.py`` recompiles).

@@ -21,12 +21,13 @@ second-order terms and the rounding of the bounds themselves). Per segment, foll
    (``geometry.ray_box``), :func:`quad_hit` (``geometry.ray_parallelogram``); triangles
    (Embree's float32, then the numpy test) are left undecided.
 
-Logic is three-valued (``NO``, ``YES``, ``MAYBE``). A depth with any undecided (``UNSURE``)
-segment calls ``Blockers.occluded`` on all its near segments (:func:`resolve`): exactly the
-rows that ``occluded`` keeps for its exact test when the reference calls it, so the same
-arrays and the same rounding; otherwise it is not called. ``tests/test_trace_shadow.py``
-checks the verdicts against ``Blockers.occluded`` on adversarial segments (grazing the
-edges, ending on the surfaces, tangent to the spheres).
+Logic is three-valued (``NO``, ``YES``, ``MAYBE``). The step kernel lists the near segments
+(1.); :func:`shade` decides them (2., 3.). A depth with any undecided (``UNSURE``) segment
+calls ``Blockers.occluded`` on all its near segments (:func:`resolve`): exactly the rows that
+``occluded`` keeps for its exact test when the reference calls it, so the same arrays and the
+same rounding; otherwise it is not called. ``tests/test_trace_shadow.py`` checks the verdicts
+against ``Blockers.occluded`` on adversarial segments (grazing the edges, ending on the
+surfaces, tangent to the spheres).
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ SAFETY = 4.0
 TINY = 1e-290
 #: Three-valued logic.
 NO, YES, MAYBE = 0, 1, 2
-#: Verdicts of :func:`classify`.
+#: Verdicts of :func:`shade`.
 CLEAR, BLOCKED, UNSURE = 0, 1, 2
 
 
