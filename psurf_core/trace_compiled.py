@@ -175,7 +175,11 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
             inb = ref.inside(b, lo, hi)
             near = test_all  # its box meets a blocker's padded box: trace_shadow.shade
             for kb in range(blockers.shape[0]):
-                near = near or shadow.meets(a, b, blockers, kb)
+                blo = (blockers[kb, shadow.LO], blockers[kb, shadow.LO + 1],
+                       blockers[kb, shadow.LO + 2])
+                bhi = (blockers[kb, shadow.HI], blockers[kb, shadow.HI + 1],
+                       blockers[kb, shadow.HI + 2])
+                near = near or shadow.meets(a, b, blo, bhi)
             if near:
                 near_photon[nn] = p
                 near_a[nn, 0], near_a[nn, 1], near_a[nn, 2] = a

@@ -53,7 +53,7 @@ CLEAR, BLOCKED, UNSURE = 0, 1, 2
 #: Kinds of blocker rows in the table (``geometry.blockers_of``'s order of ``bounds``).
 SPHERE, BOX, QUAD, MESH = 0, 1, 2, 3
 
-#: Columns of a blocker row (one per row of ``Blockers.bounds``): its kind, its box (lo, hi),
+#: Columns of a blocker row (one per row of ``Blockers.bounds``): its kind, its padded box,
 #: its plane ``(n, n . p)`` (NaN unless planar), then per kind: a sphere's centre and squared
 #: radius (``r * r``, as ``ray_sphere``); a box's min and max; a parallelogram's corner,
 #: edges, ``cross(eu, ev)`` and ``inv(Gram(eu, ev)).T`` (``m00, m01, m10, m11``), computed by
@@ -81,7 +81,9 @@ def table(blockers: Blockers) -> tuple[np.ndarray, bool]:
     if blockers.bounds is None or blockers.planes is None:
         return np.zeros((0, COLS)), True
     rows = np.zeros((blockers.bounds.shape[0], COLS))
-    rows[:, LO : LO + 3], rows[:, HI : HI + 3] = blockers.bounds[:, 0], blockers.bounds[:, 1]
+    # The padded box, as Blockers.occluded computes it: blo - _BOUNDS_PAD, bhi + _BOUNDS_PAD.
+    rows[:, LO : LO + 3] = blockers.bounds[:, 0] - _BOUNDS_PAD
+    rows[:, HI : HI + 3] = blockers.bounds[:, 1] + _BOUNDS_PAD
     rows[:, PLANE : PLANE + 4] = blockers.planes
     rows[:, KIND] = MESH
     k = 0
@@ -269,15 +271,14 @@ def quad_hit(a, d, ed, t_max, et_max, corner, n, eu, ev, m):  # pragma: no cover
 
 
 @inline
-def meets(a, b, rows, k):  # pragma: no cover - compiled
-    """Does the box of segment ``a -> b`` meet blocker ``k``'s padded box
-    (``Blockers.occluded``'s first reject, the same comparisons)?"""
-    pad = _BOUNDS_PAD
-    return (min(a[0], b[0]) <= rows[k, HI] + pad and max(a[0], b[0]) >= rows[k, LO] - pad
-            and min(a[1], b[1]) <= rows[k, HI + 1] + pad
-            and max(a[1], b[1]) >= rows[k, LO + 1] - pad
-            and min(a[2], b[2]) <= rows[k, HI + 2] + pad
-            and max(a[2], b[2]) >= rows[k, LO + 2] - pad)
+def meets(a, b, lo, hi):  # pragma: no cover - compiled
+    """Does the box of segment ``a -> b`` meet the padded box ``[lo, hi]`` (3-tuples; the
+    ``LO``, ``HI`` columns)? ``Blockers.occluded``'s first reject, the same comparisons.
+    (The callers read the columns: an array handed to an inlined function in a loop costs
+    numba a reference count per call.)"""
+    return (min(a[0], b[0]) <= hi[0] and max(a[0], b[0]) >= lo[0]
+            and min(a[1], b[1]) <= hi[1] and max(a[1], b[1]) >= lo[1]
+            and min(a[2], b[2]) <= hi[2] and max(a[2], b[2]) >= lo[2])
 
 
 @inline
@@ -347,7 +348,9 @@ def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict):  # pragma: no 
         eln = 4.0 * U * ln  # np.linalg.norm: three squares summed, a square root
         tested = MAYBE if test_all else NO  # kept by occluded for its exact test
         for k in range(rows.shape[0]):
-            if tested != YES and meets(ai, bi, rows, k):
+            lo = (rows[k, LO], rows[k, LO + 1], rows[k, LO + 2])
+            hi = (rows[k, HI], rows[k, HI + 1], rows[k, HI + 2])
+            if tested != YES and meets(ai, bi, lo, hi):
                 if np.isnan(rows[k, PLANE]):
                     tested = YES
                 else:

@@ -30,7 +30,9 @@ def _near(a, b, rows, test_all, out):
         ai, bi = (a[i, 0], a[i, 1], a[i, 2]), (b[i, 0], b[i, 1], b[i, 2])
         near = test_all
         for k in range(rows.shape[0]):
-            near = near or sh.meets(ai, bi, rows, k)
+            lo = (rows[k, sh.LO], rows[k, sh.LO + 1], rows[k, sh.LO + 2])
+            hi = (rows[k, sh.HI], rows[k, sh.HI + 1], rows[k, sh.HI + 2])
+            near = near or sh.meets(ai, bi, lo, hi)
         out[i] = near
 
 
