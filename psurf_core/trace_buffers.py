@@ -41,7 +41,9 @@ class Workspace:
     x0, w1, beta0 : (n, 3) float
         Light points, first directions, emitted weights (W).
     r : (3 n,) float
-        One depth's variates: phase cosine, azimuth, flight.
+        One depth's variates: phase cosine, azimuth (then its cosine), flight.
+    sin : (n,) float
+        Sine of the azimuth.
     u : (n,) float
         The next depth's roulette variates.
     oks : (depth + 1, n) bool
@@ -58,7 +60,7 @@ class Workspace:
         self.idx = np.empty(n, dtype=np.int64)
         self.x, self.w = np.empty((n, 3)), np.empty((n, 3))
         self.x0, self.w1, self.beta0 = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-        self.r, self.u = np.empty(3 * n), np.empty(n)
+        self.r, self.sin, self.u = np.empty(3 * n), np.empty(n), np.empty(n)
         self.oks = np.empty((depth + 1, n), dtype=bool)
         self.near_photon = np.empty(n, dtype=np.int64)
         self.near_a, self.near_b = np.empty((n, 3)), np.empty((n, 3))

@@ -288,7 +288,7 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         lg = rj[nr - m :]
         np.log1p(np.negative(lg, out=lg), out=lg)
         if j > 1:
-            cphi, sphi = emission.azimuth(rj[m : 2 * m])
+            cphi, sphi = emission.azimuth(rj[m : 2 * m], ws.sin[:m])
         else:
             cphi = sphi = empty
         # Then segment j + 1's roulette variates (the reference draws them next).

@@ -78,65 +78,72 @@ def search_right(cdf, u):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- emission
+# Each kernel writes every field of its light's photons (rows ``rows[i]``, or ``i`` when the
+# light emits all of them): x0, w1, light_normal, beta (W), light_uv, tri.
 @kernel
-def emit_point(u_z, cos_phi, sin_phi, w_out):  # pragma: no cover - compiled
-    """``uniform_direction`` per photon. (M,) variates; ``w_out`` (M, 3), written."""
+def emit_point(rows, whole, u_z, cos_phi, sin_phi, position, axis, beta_l, x0, w1, normal,
+               beta, uv, tri):  # pragma: no cover - compiled
+    """A point light's photons: its position, ``uniform_direction``, its axis as the normal.
+
+    Parameters
+    ----------
+    rows : (M,) int
+    whole : bool
+    u_z, cos_phi, sin_phi : (M,) float
+    position, axis, beta_l : (3,) float
+        ``beta_l``: the light's power over its pick probability (W).
+    x0, w1, normal, beta : (N, 3) float
+    uv : (N, 2) float
+    tri : (N,) int
+        Written at the light's rows (``uv`` 0, ``tri`` -1).
+    """
     for i in range(u_z.shape[0]):
-        w_out[i, 0], w_out[i, 1], w_out[i, 2] = ref_emit.uniform_direction(u_z[i], cos_phi[i],
-                                                                      sin_phi[i])
+        p = i if whole else rows[i]
+        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.uniform_direction(u_z[i], cos_phi[i], sin_phi[i])
+        for c in range(3):
+            x0[p, c], normal[p, c], beta[p, c] = position[c], axis[c], beta_l[c]
+        uv[p, 0] = uv[p, 1] = 0.0
+        tri[p] = -1
 
 
 @kernel
-def emit_area(u, u_c, cos_phi, sin_phi, corner, edge_u, edge_v, normal, x_out,
-              w_out):  # pragma: no cover - compiled
-    """``parallelogram_point`` and ``cosine_direction`` per photon.
-
-    Parameters
-    ----------
-    u : (M, 2) float
-        Parallelogram coordinates.
-    u_c, cos_phi, sin_phi : (M,) float
-    corner, edge_u, edge_v, normal : (3,) float
-    x_out, w_out : (M, 3) float
-        Written.
-    """
-    nl = (normal[0], normal[1], normal[2])
-    c, eu, ev = (corner[0], corner[1], corner[2]), (edge_u[0], edge_u[1], edge_u[2]), \
-        (edge_v[0], edge_v[1], edge_v[2])
+def emit_area(rows, whole, u, u_c, cos_phi, sin_phi, corner, edge_u, edge_v, nl, beta_l, x0,
+              w1, normal, beta, uv, tri):  # pragma: no cover - compiled
+    """An area light's photons: ``parallelogram_point`` at ``u``, ``cosine_direction``
+    about its normal ``nl``. Parameters as :func:`emit_point`; ``u`` (M, 2) float."""
+    c, eu, ev = ((corner[0], corner[1], corner[2]), (edge_u[0], edge_u[1], edge_u[2]),
+                 (edge_v[0], edge_v[1], edge_v[2]))
+    n = (nl[0], nl[1], nl[2])
     for i in range(u.shape[0]):
-        x_out[i, 0], x_out[i, 1], x_out[i, 2] = ref_emit.parallelogram_point(c, eu, ev,
-                                                                        (u[i, 0], u[i, 1]))
-        w_out[i, 0], w_out[i, 1], w_out[i, 2] = ref_emit.cosine_direction(nl, u_c[i], cos_phi[i],
-                                                                     sin_phi[i])
+        p = i if whole else rows[i]
+        x0[p, 0], x0[p, 1], x0[p, 2] = ref_emit.parallelogram_point(c, eu, ev, (u[i, 0], u[i, 1]))
+        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.cosine_direction(n, u_c[i], cos_phi[i],
+                                                                 sin_phi[i])
+        for k in range(3):
+            normal[p, k], beta[p, k] = n[k], beta_l[k]
+        uv[p, 0], uv[p, 1] = u[i, 0], u[i, 1]
+        tri[p] = -1
 
 
 @kernel
-def emit_mesh(k, u_s, u_r, u_c, cos_phi, sin_phi, triangles, normals, bary_out, x_out, n_out,
-              w_out):  # pragma: no cover - compiled
-    """``triangle_point`` and ``cosine_direction`` about the triangle's normal per photon.
-
-    Parameters
-    ----------
-    k : (M,) int
-        Triangle of each photon.
-    u_s, u_r, u_c, cos_phi, sin_phi : (M,) float
-    triangles : (F, 3, 3) float
-    normals : (F, 3) float
-    bary_out : (M, 2) float
-    x_out, n_out, w_out : (M, 3) float
-        Written.
-    """
+def emit_mesh(rows, whole, k, u_s, u_r, u_c, cos_phi, sin_phi, triangles, normals, beta_l, x0,
+              w1, normal, beta, uv, tri):  # pragma: no cover - compiled
+    """A mesh light's photons: ``triangle_point`` on triangle ``k[i]``, ``cosine_direction``
+    about its normal. Parameters as :func:`emit_point`; ``k`` (M,) int, ``triangles``
+    (F, 3, 3) and ``normals`` (F, 3) float."""
     for i in range(k.shape[0]):
-        f = k[i]
-        tri = ((triangles[f, 0, 0], triangles[f, 0, 1], triangles[f, 0, 2]),
-               (triangles[f, 1, 0], triangles[f, 1, 1], triangles[f, 1, 2]),
-               (triangles[f, 2, 0], triangles[f, 2, 1], triangles[f, 2, 2]))
-        (bary_out[i, 0], bary_out[i, 1]), (x_out[i, 0], x_out[i, 1], x_out[i, 2]) = \
-            ref_emit.triangle_point(tri, u_s[i], u_r[i])
+        p, f = (i if whole else rows[i]), k[i]
+        t = ((triangles[f, 0, 0], triangles[f, 0, 1], triangles[f, 0, 2]),
+             (triangles[f, 1, 0], triangles[f, 1, 1], triangles[f, 1, 2]),
+             (triangles[f, 2, 0], triangles[f, 2, 1], triangles[f, 2, 2]))
+        (uv[p, 0], uv[p, 1]), (x0[p, 0], x0[p, 1], x0[p, 2]) = ref_emit.triangle_point(
+            t, u_s[i], u_r[i])
         nk = (normals[f, 0], normals[f, 1], normals[f, 2])
-        n_out[i, 0], n_out[i, 1], n_out[i, 2] = nk
-        w_out[i, 0], w_out[i, 1], w_out[i, 2] = ref_emit.cosine_direction(nk, u_c[i], cos_phi[i],
-                                                                     sin_phi[i])
+        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.cosine_direction(nk, u_c[i], cos_phi[i],
+                                                                 sin_phi[i])
+        for c in range(3):
+            normal[p, c], beta[p, c] = nk[c], beta_l[c]
+        tri[p] = f
 
 
 @kernel
@@ -159,10 +166,11 @@ def _discrete(pmf, rng, n, out):
     return out
 
 
-def azimuth(r):
-    """``cos`` and ``sin`` of ``2 pi r`` (numpy's), in place of ``r`` and a new array."""
+def azimuth(r, sin_out=None):
+    """``cos`` and ``sin`` of the azimuth ``2 pi r`` (numpy's), in place of ``r`` and in
+    ``sin_out`` (a new array when omitted)."""
     np.multiply(r, 2.0 * np.pi, out=r)
-    s = np.sin(r)
+    s = np.sin(r, out=sin_out)
     return np.cos(r, out=r), s
 
 
@@ -193,44 +201,27 @@ def emit(scene, rng, n: int, out: dict | None = None) -> dict:
     pmf = scene.light_pmf
     light = _discrete(pmf, rng, n, e["light"])
     np.take(pmf, light, out=e["light_pmf"])
-    x0, w1, normal, beta, uv, tri = (e[k] for k in ("x0", "w1", "light_normal", "beta",
-                                                    "light_uv", "tri"))
-    uv[:] = 0.0
-    tri[:] = -1
+    fields = tuple(e[k] for k in ("x0", "w1", "light_normal", "beta", "light_uv", "tri"))
+    one = len(scene.lights) == 1  # every photon from light 0: no rows to select
     for li, lt in enumerate(scene.lights):
-        sel = np.flatnonzero(light == li)
-        m = sel.size
+        rows = np.empty(0, dtype=np.intp) if one else np.flatnonzero(light == li)
+        m = n if one else rows.size
         if m == 0:
             continue
-        # One light for every photon (the usual case): the kernels write the outputs.
-        whole = m == n
-        rows = slice(None) if whole else sel
-        xo, wo = (x0, w1) if whole else (np.empty((m, 3)), np.empty((m, 3)))
-        beta[rows] = lt.power_rgb / pmf[li]
+        beta_l = lt.power_rgb / pmf[li]
         if isinstance(lt, PointLight):
             r = rng.random(2 * m)
-            emit_point(r[:m], *azimuth(r[m:]), wo)
-            xo[:] = lt.position
-            normal[rows] = lt.axis
+            emit_point(rows, one, r[:m], *azimuth(r[m:]), lt.position, lt.axis, beta_l, *fields)
         elif isinstance(lt, AreaLight):
             r = rng.random(4 * m)
-            u = r[: 2 * m].reshape(m, 2)
-            emit_area(u, r[2 * m : 3 * m], *azimuth(r[3 * m :]), lt.corner, lt.edge_u,
-                      lt.edge_v, lt.normal, xo, wo)
-            uv[rows] = u
-            normal[rows] = lt.normal
+            emit_area(rows, one, r[: 2 * m].reshape(m, 2), r[2 * m : 3 * m], *azimuth(r[3 * m :]),
+                      lt.corner, lt.edge_u, lt.edge_v, lt.normal, beta_l, *fields)
         elif isinstance(lt, MeshLight):
             k = _discrete(lt.areas / lt.area, rng, m, np.empty(m, dtype=np.intp))
             r = rng.random(4 * m)
-            bo, no = (uv, normal) if whole else (np.empty((m, 2)), np.empty((m, 3)))
-            emit_mesh(k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], *azimuth(r[3 * m :]),
+            emit_mesh(rows, one, k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], *azimuth(r[3 * m :]),
                       np.ascontiguousarray(lt.triangles, dtype=float),
-                      np.ascontiguousarray(lt.normals, dtype=float), bo, xo, no, wo)
-            tri[sel] = k
-            if not whole:
-                uv[sel], normal[sel] = bo, no
+                      np.ascontiguousarray(lt.normals, dtype=float), beta_l, *fields)
         else:  # pragma: no cover - the scene loader admits no other light
             raise TypeError(f"unknown light {lt!r}")
-        if not whole:
-            x0[sel], w1[sel] = xo, wo
     return e
