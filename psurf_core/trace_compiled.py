@@ -43,6 +43,7 @@ from .trace_buffers import REC_CLIP, REC_T, REC_W
 
 
 # --------------------------------------------------------------------------- twins
+# Each is documented by the numpy function it twins (trace.py), operation for operation.
 @twin(ref.phase_cosine)
 def phase_cosine(g, u):  # pragma: no cover - compiled
     if abs(g) < ref.sampling.HG_ISOTROPIC_G:

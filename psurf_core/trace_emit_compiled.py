@@ -14,6 +14,7 @@ from .scene import AreaLight, MeshLight, PointLight
 
 
 # --------------------------------------------------------------------------- twins
+# Each is documented by the numpy function it twins (trace_emit.py), operation for operation.
 @twin(ref_emit.direction_about)
 def direction_about(axis, cos_theta, cos_phi, sin_phi):  # pragma: no cover - compiled
     a0, a1, a2 = axis
