@@ -84,7 +84,8 @@ def segment_clip(x, w, t, bmin, bmax):  # pragma: no cover - compiled
 
 @twin(ref.inside)
 def inside(x, lo, hi):  # pragma: no cover - compiled
-    return (lo[0] <= x[0] <= hi[0]) and (lo[1] <= x[1] <= hi[1]) and (lo[2] <= x[2] <= hi[2])
+    return ((lo[0] <= x[0]) & (x[0] <= hi[0]) & (lo[1] <= x[1]) & (x[1] <= hi[1])
+            & (lo[2] <= x[2]) & (x[2] <= hi[2]))  # &: no branches
 
 
 @twin(ref.survives)
@@ -180,7 +181,7 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
                        blockers[kb, shadow.LO + 2])
                 bhi = (blockers[kb, shadow.HI], blockers[kb, shadow.HI + 1],
                        blockers[kb, shadow.HI + 2])
-                near = near or shadow.meets(a, b, blo, bhi)
+                near |= shadow.meets(a, b, blo, bhi)
             if near:
                 near_photon[nn] = p
                 near_a[nn, 0], near_a[nn, 1], near_a[nn, 2] = a

@@ -32,7 +32,7 @@ def _near(a, b, rows, test_all, out):
         for k in range(rows.shape[0]):
             lo = (rows[k, sh.LO], rows[k, sh.LO + 1], rows[k, sh.LO + 2])
             hi = (rows[k, sh.HI], rows[k, sh.HI + 1], rows[k, sh.HI + 2])
-            near = near or sh.meets(ai, bi, lo, hi)
+            near |= sh.meets(ai, bi, lo, hi)
         out[i] = near
 
 
