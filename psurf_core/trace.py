@@ -136,7 +136,7 @@ def roulette_survival(scene: Scene, vertex: int) -> float:
     """Survival probability before sampling the segment that leaves ``vertex`` (depth only)."""
     if scene.max_scatter > 0 or vertex < ROULETTE_START:
         return 1.0
-    return float(np.clip(scene.medium.albedo, 0.25, 0.9))
+    return min(max(float(scene.medium.albedo), 0.25), 0.9)
 
 
 # --------------------------------------------------------------------------- formulas

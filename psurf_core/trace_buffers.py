@@ -20,8 +20,10 @@ results equal either way). So:
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
+import weakref
 
 import numpy as np
 
@@ -134,12 +136,15 @@ class Recycler:
     def arrays(self, specs) -> list[np.ndarray]:
         """Uninitialised C-contiguous arrays of the given ``(shape, dtype)``, views of one
         unused block."""
-        sizes = [int(np.prod(shape)) * np.dtype(dt).itemsize for shape, dt in specs]
-        offs = np.cumsum([0] + [-(-s // _ALIGN) * _ALIGN for s in sizes])
-        blk = self.block(int(offs[-1]))
+        spans, total = [], 0
+        for shape, dt in specs:
+            size = math.prod(shape) * np.dtype(dt).itemsize
+            spans.append((total, size))
+            total += -(-size // _ALIGN) * _ALIGN
+        blk = self.block(total)
         base = -blk.ctypes.data % _ALIGN
-        return [blk[base + o : base + o + s].view(dt).reshape(shape)
-                for (shape, dt), o, s in zip(specs, offs, sizes, strict=False)]
+        return [blk[base + o : base + o + size].view(dt).reshape(shape)
+                for (shape, dt), (o, size) in zip(specs, spans, strict=True)]
 
 
 def recycler() -> Recycler:
@@ -148,3 +153,21 @@ def recycler() -> Recycler:
     if rc is None:
         rc = _local.recycler = Recycler()
     return rc
+
+
+_constants: dict[tuple, tuple] = {}
+
+
+def constants(make, *objs):
+    """``make(*objs)``, computed once per set of live objects (by identity; kept while they
+    live, a few at a time): a scene's and its blockers' constants for the kernels. The objects
+    are frozen dataclasses: a change makes a new one."""
+    key = (make, *map(id, objs))
+    hit = _constants.get(key)
+    if hit is not None and all(r() is o for r, o in zip(hit[0], objs, strict=True)):
+        return hit[1]
+    value = make(*objs)
+    if len(_constants) >= 16:
+        _constants.clear()
+    _constants[key] = (tuple(weakref.ref(o) for o in objs), value)
+    return value

@@ -269,10 +269,8 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         Segments to trace at most.
     """
     med = scene.medium
-    bmin = np.asarray(med.bounds_min, dtype=float)
-    bmax = np.asarray(med.bounds_max, dtype=float)
-    box = np.stack([bmin, bmax, bmin - ref.BOX_SLACK, bmax + ref.BOX_SLACK])
-    rows, test_all = shadow.table(blockers)
+    box = buffers.constants(_box, med)
+    rows, test_all = buffers.constants(shadow.table, blockers)
     ws = buffers.workspace(n, depth)
     keep = n <= buffers.KEEP_PHOTONS  # outputs in recycled blocks (trace_buffers)
     out = _outputs(keep, [(k, (n, *shape), dt) for k, (shape, dt) in emission.FIELDS.items()
@@ -323,6 +321,13 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
              np.array(rec_off, dtype=np.int64), p["x"], p["w"], p["t"], p["beta"],
              p["alive"], p["clip"], p["prefix_ok"])
     return ref.PhotonPaths(n_emitted=n, **{k: e[k] for k in out}, **p)
+
+
+def _box(med) -> np.ndarray:
+    """(4, 3) float: ``bmin, bmax`` and ``trace.inside``'s slackened ``lo, hi``."""
+    bmin = np.asarray(med.bounds_min, dtype=float)
+    bmax = np.asarray(med.bounds_max, dtype=float)
+    return np.stack([bmin, bmax, bmin - ref.BOX_SLACK, bmax + ref.BOX_SLACK])
 
 
 def _outputs(recycled: bool, specs) -> dict:

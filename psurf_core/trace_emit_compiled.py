@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import trace_buffers as buffers
 from . import trace_emit as ref_emit
 from .kernels.jit import kernel, twin
 from .scene import AreaLight, MeshLight, PointLight
@@ -155,16 +156,43 @@ def search(cdf, u, out):  # pragma: no cover - compiled
         out[i] = min(ref_emit.search_right(cdf, u[i]), last)
 
 
-def _discrete(pmf, rng, n, out):
-    """``trace_emit._discrete`` with the compiled search, into ``out`` ((n,) intp)."""
-    u = rng.random(n)
+def _cdf(pmf):
+    """The normalised cdf ``trace_emit._discrete`` searches (``None`` for one entry)."""
     if len(pmf) == 1:
-        out[:] = 0
-        return out
+        return None
     cdf = np.cumsum(pmf)
     cdf /= cdf[-1]
-    search(cdf, u, out)
+    return cdf
+
+
+def _discrete(cdf, rng, n, out):
+    """``trace_emit._discrete`` with the compiled search, into ``out`` ((n,) intp)."""
+    u = rng.random(n)
+    if cdf is None:
+        out[:] = 0
+    else:
+        search(cdf, u, out)
     return out
+
+
+def lights(scene) -> tuple:
+    """What emission computes from the scene alone: ``P_L`` (L,), its cdf, and per light
+    the constant arguments of its kernel (its weight ``power / P_L``, W, last). Computed once
+    per scene (``trace_buffers.constants``)."""
+    pmf = scene.light_pmf
+    per = []
+    for li, lt in enumerate(scene.lights):
+        beta_l = lt.power_rgb / pmf[li]
+        if isinstance(lt, PointLight):
+            per.append((lt.position, lt.axis, beta_l))
+        elif isinstance(lt, AreaLight):
+            per.append((lt.corner, lt.edge_u, lt.edge_v, lt.normal, beta_l))
+        elif isinstance(lt, MeshLight):
+            per.append((_cdf(lt.areas / lt.area), np.ascontiguousarray(lt.triangles, dtype=float),
+                        np.ascontiguousarray(lt.normals, dtype=float), beta_l))
+        else:  # pragma: no cover - the scene loader admits no other light
+            raise TypeError(f"unknown light {lt!r}")
+    return pmf, _cdf(pmf), per
 
 
 def azimuth(r, sin_out=None):
@@ -199,30 +227,26 @@ def emit(scene, rng, n: int, out: dict | None = None) -> dict:
     """
     e = out if out is not None else {k: np.empty((n, *s), dtype=dt)
                                      for k, (s, dt) in FIELDS.items()}
-    pmf = scene.light_pmf
-    light = _discrete(pmf, rng, n, e["light"])
+    pmf, cdf, per = buffers.constants(lights, scene)
+    light = _discrete(cdf, rng, n, e["light"])
     np.take(pmf, light, out=e["light_pmf"])
     fields = tuple(e[k] for k in ("x0", "w1", "light_normal", "beta", "light_uv", "tri"))
     one = len(scene.lights) == 1  # every photon from light 0: no rows to select
-    for li, lt in enumerate(scene.lights):
+    for li, (lt, args) in enumerate(zip(scene.lights, per, strict=True)):
         rows = np.empty(0, dtype=np.intp) if one else np.flatnonzero(light == li)
         m = n if one else rows.size
         if m == 0:
             continue
-        beta_l = lt.power_rgb / pmf[li]
         if isinstance(lt, PointLight):
             r = rng.random(2 * m)
-            emit_point(rows, one, r[:m], *azimuth(r[m:]), lt.position, lt.axis, beta_l, *fields)
+            emit_point(rows, one, r[:m], *azimuth(r[m:]), *args, *fields)
         elif isinstance(lt, AreaLight):
             r = rng.random(4 * m)
             emit_area(rows, one, r[: 2 * m].reshape(m, 2), r[2 * m : 3 * m], *azimuth(r[3 * m :]),
-                      lt.corner, lt.edge_u, lt.edge_v, lt.normal, beta_l, *fields)
-        elif isinstance(lt, MeshLight):
-            k = _discrete(lt.areas / lt.area, rng, m, np.empty(m, dtype=np.intp))
+                      *args, *fields)
+        else:
+            k = _discrete(args[0], rng, m, np.empty(m, dtype=np.intp))
             r = rng.random(4 * m)
             emit_mesh(rows, one, k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], *azimuth(r[3 * m :]),
-                      np.ascontiguousarray(lt.triangles, dtype=float),
-                      np.ascontiguousarray(lt.normals, dtype=float), beta_l, *fields)
-        else:  # pragma: no cover - the scene loader admits no other light
-            raise TypeError(f"unknown light {lt!r}")
+                      *args[1:], *fields)
     return e
