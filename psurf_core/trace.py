@@ -51,9 +51,6 @@ __all__ = ["LOOKBACK", "PhotonPaths", "emit", "roulette_survival", "trace", "tra
 #: Deepest look-back (in segments) of any technique; see the module docstring.
 LOOKBACK = 3
 
-#: Slack (scene units) of the medium box test: ``geometry.inside_box``'s, read from it.
-BOX_SLACK = inside_box.__defaults__[0]
-
 
 @dataclass(frozen=True)
 class PhotonPaths:
@@ -210,12 +207,6 @@ def segment_clip(x, w, t, bmin, bmax):
     return np.stack([np.where(enter < t, enter, t), np.where(leave < t, leave, t)], axis=-1)
 
 
-def inside(x, lo, hi):
-    """(M,) bool: points ``x`` (M, 3) in the closed box ``[lo, hi]`` (``geometry.inside_box``
-    with ``lo = bmin - BOX_SLACK``, ``hi = bmax + BOX_SLACK``)."""
-    return np.all((x >= lo) & (x <= hi), axis=-1)
-
-
 def survives(ok_look, u, q):
     """(M,) bool: a photon goes on while a technique can still use its next segment
     (``ok_look``: ``prefix_ok`` at the deepest vertex a technique looks back to) and it
@@ -254,8 +245,8 @@ class Step:
 
 def step(photon, x, w, beta, t, ok_prev, box, blockers: Blockers):
     """Segment ``j`` of the active photons: its end vertices, in-box part and the new
-    vertex's ``prefix_ok`` (the previous one, the end inside the box, the segment
-    unoccluded).
+    vertex's ``prefix_ok`` (the previous one, the end inside the box (``geometry.inside_box``),
+    the segment unoccluded).
 
     Parameters
     ----------
@@ -267,7 +258,7 @@ def step(photon, x, w, beta, t, ok_prev, box, blockers: Blockers):
     ok_prev : (N,) bool
         ``prefix_ok`` of the start vertex, per photon.
     box : tuple of (3,) float
-        ``(bmin, bmax, lo, hi)``: the medium box and its slackened bounds (:func:`inside`).
+        ``(bmin, bmax)``: the medium box.
     blockers : Blockers
 
     Returns
@@ -276,11 +267,11 @@ def step(photon, x, w, beta, t, ok_prev, box, blockers: Blockers):
     ok : (N,) bool
         ``prefix_ok`` of the end vertex (false for photons not in ``photon``).
     """
-    bmin, bmax, lo, hi = box
+    bmin, bmax = box
     x_end = advance(x, w, t)
     ok = np.zeros(ok_prev.shape[0], dtype=bool)
     sel = ok_prev[photon]
-    ok[photon[sel]] = inside(x_end[sel], lo, hi) & ~blockers.occluded(x[sel], x_end[sel])
+    ok[photon[sel]] = inside_box(x_end[sel], bmin, bmax) & ~blockers.occluded(x[sel], x_end[sel])
     return Step(photon, t, w, beta, x_end, segment_clip(x, w, t, bmin, bmax)), ok
 
 
@@ -352,7 +343,7 @@ def trace(
     med = scene.medium
     bmin = np.asarray(med.bounds_min, dtype=float)
     bmax = np.asarray(med.bounds_max, dtype=float)
-    box = (bmin, bmax, bmin - BOX_SLACK, bmax + BOX_SLACK)
+    box = (bmin, bmax)
     e = emit(scene, rng, n_photons)
     photon, x, w, beta = np.arange(n_photons), e["x0"], e["w1"], e["beta"]
     oks, steps = [np.ones(n_photons, dtype=bool)], []

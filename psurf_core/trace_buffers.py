@@ -1,27 +1,18 @@
-"""Memory of the compiled Trace: a per-thread scratch workspace, and recycled output blocks.
+"""Memory of the compiled Trace: a per-thread scratch workspace, and constants computed once
+per scene.
 
 A 32768-photon batch of ``scenes/area.toml`` returns ~55 MB (``PhotonPaths``' arrays are
 padded to the deepest photon) and needs ~20 MB of scratch. Fresh memory costs a page fault
 per page on first touch; on this project's 2-core VM that was 5-10 ms of a ~25 ms batch when
-idle and up to 200 ms under memory pressure (``tests/test_trace_reference.py`` holds the
-results equal either way). So:
-
-* :class:`Workspace`: the state, variates, step records and ``prefix_ok`` of a trace, kept by
-  the thread between calls (nothing in it is returned);
-* :class:`Recycler`: the returned arrays are views of blocks the thread keeps. A numpy view
-  holds a reference to the array that owns its memory, so a block that nothing but the
-  recycler references cannot be read or written by anyone: only such a block is reused.
-  A caller keeping a ``PhotonPaths`` (or any view of one of its arrays) keeps its block.
-  The test is CPython's reference count (``sys.getrefcount``);
-  ``tests/test_trace_reference.py::test_recycled_outputs`` checks it still holds. A thread
-  keeps at most ``Recycler.keep`` blocks: for render's batches about two ``PhotonPaths``,
-  ~150 MB on ``scenes/area.toml``, held after the render until the thread ends.
+idle and up to 200 ms under memory pressure. So the scratch (:class:`Workspace`: the state,
+variates, step records and ``prefix_ok`` of a trace) is kept by the thread between calls, and
+the returned arrays are cut from ``kernels.buffers.HitBuffers`` (``trace_compiled.OUTPUTS``),
+reused once the caller has dropped every view of them. A thread thus keeps the workspace
+(~25 MB) and two output buffers per kind (~150 MB on ``scenes/area.toml``) until it ends.
 """
 
 from __future__ import annotations
 
-import math
-import sys
 import threading
 import weakref
 
@@ -94,65 +85,6 @@ def workspace(n: int, depth: int) -> Workspace:
     if ws.n <= KEEP_PHOTONS:
         _local.ws = ws
     return ws
-
-
-#: Alignment (bytes) of every array carved from a block.
-_ALIGN = 64
-
-
-class Recycler:
-    """Output blocks of one thread, reused once nothing outside references them.
-
-    Parameters
-    ----------
-    keep : int
-        Blocks kept; beyond them the smallest unused one is dropped (a used one is only
-        forgotten: its arrays live on with their caller).
-    """
-
-    def __init__(self, keep: int = 4):
-        self.keep = keep
-        self.blocks: list[np.ndarray] = []
-
-    def _free(self, i: int) -> bool:
-        # References to an unused block: the list's and getrefcount's argument.
-        return sys.getrefcount(self.blocks[i]) <= 2
-
-    def block(self, nbytes: int) -> np.ndarray:
-        """An unused block of at least ``nbytes`` bytes: the smallest one kept, else a new
-        one (with a quarter to spare, as the next batch may trace deeper)."""
-        fits = [i for i in range(len(self.blocks))
-                if self.blocks[i].nbytes >= nbytes and self._free(i)]
-        if fits:
-            return self.blocks[min(fits, key=lambda i: self.blocks[i].nbytes)]
-        new = np.empty(nbytes + nbytes // 4 + _ALIGN, dtype=np.uint8)
-        if len(self.blocks) >= self.keep:
-            unused = [i for i in range(len(self.blocks)) if self._free(i)]
-            drop = min(unused, key=lambda i: self.blocks[i].nbytes) if unused else 0
-            del self.blocks[drop]
-        self.blocks.append(new)
-        return new
-
-    def arrays(self, specs) -> list[np.ndarray]:
-        """Uninitialised C-contiguous arrays of the given ``(shape, dtype)``, views of one
-        unused block."""
-        spans, total = [], 0
-        for shape, dt in specs:
-            size = math.prod(shape) * np.dtype(dt).itemsize
-            spans.append((total, size))
-            total += -(-size // _ALIGN) * _ALIGN
-        blk = self.block(total)
-        base = -blk.ctypes.data % _ALIGN
-        return [blk[base + o : base + o + size].view(dt).reshape(shape)
-                for (shape, dt), (o, size) in zip(specs, spans, strict=True)]
-
-
-def recycler() -> Recycler:
-    """This thread's :class:`Recycler`."""
-    rc = getattr(_local, "recycler", None)
-    if rc is None:
-        rc = _local.recycler = Recycler()
-    return rc
 
 
 _constants: dict[tuple, tuple] = {}

@@ -23,8 +23,9 @@ Where this path differs from the numpy reference in work, not in values:
   ``trace_shadow.shade`` decides what ``Blockers.occluded`` answers for the near segments
   from rounding bounds, and only a depth with an undecided one calls ``Blockers.occluded``,
   on all its near segments: exactly the rows the reference's call keeps for its exact test;
-* **memory**: scratch in a per-thread workspace, outputs in recycled blocks
-  (:mod:`psurf_core.trace_buffers`): no page faults on fresh memory per batch.
+* **memory**: scratch in a per-thread workspace (:mod:`psurf_core.trace_buffers`), outputs
+  in ``kernels.buffers`` reused once the caller has dropped them: no page faults on fresh
+  memory per batch.
 
 Compiled with :func:`psurf_core.kernels.jit.kernel` (cached on disk, keyed by the sources
 they inline: editing ``trace.py`` or ``trace_shadow.py`` recompiles).
@@ -32,13 +33,19 @@ they inline: editing ``trace.py`` or ``trace_shadow.py`` recompiles).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from . import geometry
 from . import trace as ref
 from . import trace_buffers as buffers
 from . import trace_emit_compiled as emission
 from . import trace_shadow as shadow
+from .kernels.buffers import HitBuffers
 from .kernels.jit import kernel, twin
+from .kernels.shadow import BlockerRow
+from .records import load
 from .trace_buffers import REC_CLIP, REC_T, REC_W
 
 
@@ -82,12 +89,6 @@ def segment_clip(x, w, t, bmin, bmax):  # pragma: no cover - compiled
     return (enter if enter < t else t), (leave if leave < t else t)
 
 
-@twin(ref.inside)
-def inside(x, lo, hi):  # pragma: no cover - compiled
-    return ((lo[0] <= x[0]) & (x[0] <= hi[0]) & (lo[1] <= x[1]) & (x[1] <= hi[1])
-            & (lo[2] <= x[2]) & (x[2] <= hi[2]))  # &: no branches
-
-
 @twin(ref.survives)
 def survives(ok_look, u, q):  # pragma: no cover - compiled
     return ok_look and (u < q if q < 1.0 else True)
@@ -125,8 +126,8 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     u_mu, cos_phi, sin_phi, log1p_neg_u : (m,) float
         Variates of the phase cosine, ``cos``/``sin`` of the azimuth, ``log1p(-u)`` of the
         flight.
-    box : (4, 3) float
-        ``bmin, bmax, lo, hi`` (``trace.inside``'s slackened bounds).
+    box : (2, 3) float
+        ``bmin, bmax``.
     ok_prev, ok_cur : (N,) bool
         ``prefix_ok`` of the start and end vertex; ``ok_cur`` false on entry, written here
         but for the near segments (``trace_shadow.shade``, ``resolve``).
@@ -146,7 +147,7 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     near_inside : (P,) bool
         The near segments (box meets a blocker's padded box; every one when ``test_all``):
         photon, start, end, end in the box.
-    blockers : (B, trace_shadow.COLS) float
+    blockers : (B, F) float
     test_all : bool
         The blocker rows and flag of ``trace_shadow.table``.
 
@@ -158,7 +159,6 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
         Near segments listed.
     """
     bmin, bmax = (box[0, 0], box[0, 1], box[0, 2]), (box[1, 0], box[1, 1], box[1, 2])
-    lo, hi = (box[2, 0], box[2, 1], box[2, 2]), (box[3, 0], box[3, 1], box[3, 2])
     k, nn = 0, 0
     for i in range(m):
         p = idx[i]
@@ -174,14 +174,10 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
         rec[r, REC_W], rec[r, REC_W + 1], rec[r, REC_W + 2] = d
         rec[r, REC_CLIP], rec[r, REC_CLIP + 1] = ref.segment_clip(a, d, t, bmin, bmax)
         if ok_prev[p]:
-            inb = ref.inside(b, lo, hi)
+            inb = geometry.inside_box(b, bmin, bmax)
             near = test_all  # its box meets a blocker's padded box: trace_shadow.shade
             for kb in range(blockers.shape[0]):
-                blo = (blockers[kb, shadow.LO], blockers[kb, shadow.LO + 1],
-                       blockers[kb, shadow.LO + 2])
-                bhi = (blockers[kb, shadow.HI], blockers[kb, shadow.HI + 1],
-                       blockers[kb, shadow.HI + 2])
-                near |= shadow.meets(a, b, blo, bhi)
+                near |= shadow.meets(a, b, load(blockers, kb, BlockerRow))
             if near:
                 near_photon[nn] = p
                 near_a[nn, 0], near_a[nn, 1], near_a[nn, 2] = a
@@ -272,9 +268,10 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
     box = buffers.constants(_box, med)
     rows, test_all = buffers.constants(shadow.table, blockers)
     ws = buffers.workspace(n, depth)
-    keep = n <= buffers.KEEP_PHOTONS  # outputs in recycled blocks (trace_buffers)
-    out = _outputs(keep, [(k, (n, *shape), dt) for k, (shape, dt) in emission.FIELDS.items()
-                          if k not in ("x0", "w1", "beta")])
+    keep = n <= buffers.KEEP_PHOTONS  # outputs in reused buffers (OUTPUTS)
+    out = _outputs(keep, "lights", [(k, (n, *shape), dt)
+                                    for k, (shape, dt) in emission.FIELDS.items()
+                                    if k not in ("x0", "w1", "beta")])
     e = emission.emit(scene, rng, n, dict(out, x0=ws.x0[:n], w1=ws.w[:n], beta=ws.beta0[:n]))
     idx, x, w, oks, r = ws.idx, ws.x, ws.w, ws.oks, ws.r
     idx[:n] = np.arange(n)
@@ -313,10 +310,10 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         qs.append(q_next)
         m = k
     d = len(rec_off) - 1
-    p = _outputs(keep, [("x", (n, d + 1, 3), np.float64), ("w", (n, d, 3), np.float64),
-                        ("t", (n, d), np.float64), ("beta", (n, d, 3), np.float64),
-                        ("alive", (n, d), np.bool_), ("clip", (n, d, 2), np.float64),
-                        ("prefix_ok", (n, d + 1), np.bool_)])
+    p = _outputs(keep, "paths", [
+        ("x", (n, d + 1, 3), np.float64), ("w", (n, d, 3), np.float64), ("t", (n, d), np.float64),
+        ("beta", (n, d, 3), np.float64), ("alive", (n, d), np.bool_),
+        ("clip", (n, d, 2), np.float64), ("prefix_ok", (n, d + 1), np.bool_)])
     assemble(e["x0"], e["beta"], np.array(qs[:d]), med.albedo, oks, ws.rec_idx, ws.rec,
              np.array(rec_off, dtype=np.int64), p["x"], p["w"], p["t"], p["beta"],
              p["alive"], p["clip"], p["prefix_ok"])
@@ -324,16 +321,23 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
 
 
 def _box(med) -> np.ndarray:
-    """(4, 3) float: ``bmin, bmax`` and ``trace.inside``'s slackened ``lo, hi``."""
-    bmin = np.asarray(med.bounds_min, dtype=float)
-    bmax = np.asarray(med.bounds_max, dtype=float)
-    return np.stack([bmin, bmax, bmin - ref.BOX_SLACK, bmax + ref.BOX_SLACK])
+    """(2, 3) float: ``bmin, bmax``."""
+    return np.stack([np.asarray(med.bounds_min, dtype=float),
+                     np.asarray(med.bounds_max, dtype=float)])
 
 
-def _outputs(recycled: bool, specs) -> dict:
-    """Uninitialised arrays ``name -> (shape, dtype)``: views of one block of this thread's
-    ``trace_buffers.Recycler``, or (for calls too large to keep) new arrays."""
+#: Output memory reused between batches (``kernels.buffers``: two per kind and thread, a
+#: buffer reused once nothing references the arrays cut from it).
+OUTPUTS = HitBuffers()
+
+
+def _outputs(recycled: bool, kind: str, specs) -> dict:
+    """Uninitialised C-contiguous arrays ``name -> (shape, dtype)`` (the first axis the
+    photons), cut from one of :data:`OUTPUTS`' buffers or, for calls too large to keep,
+    new."""
     if not recycled:
         return {name: np.empty(shape, dtype=dt) for name, shape, dt in specs}
-    arrays = buffers.recycler().arrays([(shape, dt) for _, shape, dt in specs])
-    return {name: a for (name, _, _), a in zip(specs, arrays, strict=True)}
+    n = specs[0][1][0]
+    fields = [(dt, math.prod(shape[1:])) for _, shape, dt in specs]
+    arrays = OUTPUTS.take(f"trace.{kind}", fields, n)
+    return {name: a.reshape(shape) for (name, shape, _), a in zip(specs, arrays, strict=True)}

@@ -22,7 +22,7 @@ second-order terms and the rounding of the bounds themselves). Per segment, foll
    (Embree's float32, then the numpy test) are left undecided.
 
 Logic is three-valued (``NO``, ``YES``, ``MAYBE``). The step kernel lists the near segments
-(1.); :func:`shade` decides them (2., 3.). A depth with any undecided (``UNSURE``) segment
+(1.); :func:`shade` decides them (2., 3.). A depth with any undecided (``DEFER``) segment
 calls ``Blockers.occluded`` on all its near segments (:func:`resolve`): exactly the rows that
 ``occluded`` keeps for its exact test when the reference calls it, so the same arrays and the
 same rounding; otherwise it is not called. ``tests/test_trace_shadow.py`` checks the verdicts
@@ -34,9 +34,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constants import PARALLEL_EPS, SHADOW_EPS
-from .geometry import _BOUNDS_PAD, Blockers
+from .constants import BOUNDS_PAD, PARALLEL_EPS, SHADOW_EPS
+from .geometry import Blockers
 from .kernels.jit import inline, kernel
+from .kernels.shadow import BLOCKED, BOX, CLEAR, DEFER, QUAD, SPHERE, BlockerRow, blocker_table
+from .records import flat, load
 
 #: Unit roundoff of float64.
 U = 2.0**-53
@@ -46,64 +48,27 @@ SAFETY = 4.0
 TINY = 1e-290
 #: Three-valued logic.
 NO, YES, MAYBE = 0, 1, 2
-#: Verdicts of :func:`shade`.
-CLEAR, BLOCKED, UNSURE = 0, 1, 2
-
-
-#: Kinds of blocker rows in the table (``geometry.blockers_of``'s order of ``bounds``).
-SPHERE, BOX, QUAD, MESH = 0, 1, 2, 3
-
-#: Columns of a blocker row (one per row of ``Blockers.bounds``): its kind, its padded box,
-#: its plane ``(n, n . p)`` (NaN unless planar), then per kind: a sphere's centre and squared
-#: radius (``r * r``, as ``ray_sphere``); a box's min and max; a parallelogram's corner,
-#: edges, ``cross(eu, ev)`` and ``inv(Gram(eu, ev)).T`` (``m00, m01, m10, m11``), computed by
-#: ``ray_parallelogram``'s own expressions. A mesh row has its box only.
-KIND, LO, HI, PLANE = 0, 1, 4, 7
-CENTER, R2 = 11, 14
-BOX_MIN, BOX_MAX = 11, 14
-CORNER, EU, EV, NORMAL, GRAM_INV = 11, 14, 17, 20, 23
-COLS = 27
+#: Verdicts of :func:`shade` (``kernels.shadow``'s): ``CLEAR``, ``BLOCKED``, ``DEFER`` (left
+#: to ``Blockers.occluded``).
+__all__ = ["BLOCKED", "CLEAR", "DEFER", "resolve", "shade", "table"]
 
 
 def table(blockers: Blockers) -> tuple[np.ndarray, bool]:
-    """The blockers as the kernels see them.
+    """The blockers as the kernels see them: ``kernels.shadow.blocker_table``'s
+    :class:`~psurf_core.kernels.shadow.BlockerRow` records (its spheres' radii, boxes, quads'
+    planes, edges and inverse Gram matrices are ``geometry``'s own values), flat.
 
     Returns
     -------
-    rows : (B, COLS) float
-        One row per blocker box (columns above); empty when nothing blocks or when the
-        blockers have no boxes.
+    rows : (B, F) float
+        One record per blocker box (empty when nothing blocks).
     test_all : bool
-        Blockers without boxes: every segment is near and undecided.
+        Blockers without boxes: every segment is near and deferred.
     """
-    if blockers.empty:
-        return np.zeros((0, COLS)), False
-    if blockers.bounds is None or blockers.planes is None:
-        return np.zeros((0, COLS)), True
-    rows = np.zeros((blockers.bounds.shape[0], COLS))
-    # The padded box, as Blockers.occluded computes it: blo - _BOUNDS_PAD, bhi + _BOUNDS_PAD.
-    rows[:, LO : LO + 3] = blockers.bounds[:, 0] - _BOUNDS_PAD
-    rows[:, HI : HI + 3] = blockers.bounds[:, 1] + _BOUNDS_PAD
-    rows[:, PLANE : PLANE + 4] = blockers.planes
-    rows[:, KIND] = MESH
-    k = 0
-    for c, r in zip(blockers.sphere_c, blockers.sphere_r, strict=True):
-        rows[k, KIND], rows[k, CENTER : CENTER + 3], rows[k, R2] = SPHERE, c, r * r
-        k += 1
-    for lo, hi in zip(blockers.box_min, blockers.box_max, strict=True):
-        rows[k, KIND], rows[k, BOX_MIN : BOX_MIN + 3], rows[k, BOX_MAX : BOX_MAX + 3] = BOX, lo, hi
-        k += 1
-    for corner, eu, ev in blockers.quads:
-        g = np.array([[eu @ eu, eu @ ev], [eu @ ev, ev @ ev]])
-        rows[k, KIND] = QUAD
-        rows[k, CORNER : CORNER + 3], rows[k, EU : EU + 3], rows[k, EV : EV + 3] = corner, eu, ev
-        rows[k, NORMAL : NORMAL + 3] = np.cross(eu, ev)
-        rows[k, GRAM_INV : GRAM_INV + 4] = np.linalg.inv(g).T.ravel()
-        k += 1
-    if not (np.isnan(rows[:k - len(blockers.quads), PLANE]).all()
-            and np.isnan(rows[k:, PLANE]).all()):  # pragma: no cover - a broken Blockers
-        raise ValueError("blocker boxes not in blockers_of's order")
-    return rows, False
+    tab = blocker_table(blockers)
+    if tab is None:
+        return np.zeros((0, 1)), True
+    return flat(tab), False
 
 
 # --------------------------------------------------------------------------- logic
@@ -263,7 +228,7 @@ def quad_hit(a, d, ed, t_max, et_max, corner, n, eu, ev, m):  # pragma: no cover
            + 4.0 * U * (abs(p0 * eu[0]) + abs(p1 * eu[1]) + abs(p2 * eu[2])))
     er1 = (abs(ev[0]) * ep0 + abs(ev[1]) * ep1 + abs(ev[2]) * ep2
            + 4.0 * U * (abs(p0 * ev[0]) + abs(p1 * ev[1]) + abs(p2 * ev[2])))
-    for m0j, m1j in ((m[0], m[2]), (m[1], m[3])):  # (u, v) = (r0, r1) @ m
+    for m0j, m1j in ((m[0], m[1]), (m[2], m[3])):  # (u, v) = (r0, r1) @ inv(Gram).T
         uv = r0 * m0j + r1 * m1j
         euv = abs(m0j) * er0 + abs(m1j) * er1 + 3.0 * U * (abs(r0 * m0j) + abs(r1 * m1j))
         res = and3(res, and3(less(0.0, 0.0, uv, euv), less(uv, euv, 1.0, 0.0)))
@@ -271,11 +236,13 @@ def quad_hit(a, d, ed, t_max, et_max, corner, n, eu, ev, m):  # pragma: no cover
 
 
 @inline
-def meets(a, b, lo, hi):  # pragma: no cover - compiled
-    """Does the box of segment ``a -> b`` meet the padded box ``[lo, hi]`` (3-tuples; the
-    ``LO``, ``HI`` columns)? ``Blockers.occluded``'s first reject, the same comparisons.
-    (The callers read the columns: an array handed to an inlined function in a loop costs
-    numba a reference count per call.)"""
+def meets(a, b, bl):  # pragma: no cover - compiled
+    """Does the box of segment ``a -> b`` meet blocker ``bl``'s box padded by
+    ``BOUNDS_PAD``? ``Blockers.occluded``'s first reject, the same comparisons. (``bl`` a
+    :class:`BlockerRow`: an array handed to an inlined function in a loop costs numba a
+    reference count per call.)"""
+    lo = (bl.lo[0] - BOUNDS_PAD, bl.lo[1] - BOUNDS_PAD, bl.lo[2] - BOUNDS_PAD)
+    hi = (bl.hi[0] + BOUNDS_PAD, bl.hi[1] + BOUNDS_PAD, bl.hi[2] + BOUNDS_PAD)
     # & rather than `and`: no branches (they mispredict on segments near the boxes)
     return ((min(a[0], b[0]) <= hi[0]) & (max(a[0], b[0]) >= lo[0])
             & (min(a[1], b[1]) <= hi[1]) & (max(a[1], b[1]) >= lo[1])
@@ -283,28 +250,14 @@ def meets(a, b, lo, hi):  # pragma: no cover - compiled
 
 
 @inline
-def params(rows, k):  # pragma: no cover - compiled
-    """Row ``k``'s kind-specific columns (``CENTER ..``) as a 16-tuple."""
-    c = CENTER
-    return (rows[k, c], rows[k, c + 1], rows[k, c + 2], rows[k, c + 3], rows[k, c + 4],
-            rows[k, c + 5], rows[k, c + 6], rows[k, c + 7], rows[k, c + 8], rows[k, c + 9],
-            rows[k, c + 10], rows[k, c + 11], rows[k, c + 12], rows[k, c + 13],
-            rows[k, c + 14], rows[k, c + 15])
-
-
-@inline
-def blocker_hit(kind, a, d, ed, t_max, et_max, q):  # pragma: no cover - compiled
-    """The test of one blocker of ``kind`` with the columns ``q`` (:func:`params`)."""
-    if kind == SPHERE:
-        return sphere_hit(a, d, ed, t_max, et_max, (q[0], q[1], q[2]), q[R2 - CENTER])
-    if kind == BOX:
-        return box_hit(a, d, ed, t_max, et_max, (q[0], q[1], q[2]), (q[3], q[4], q[5]))
-    if kind == QUAD:
-        o = CORNER - CENTER
-        return quad_hit(a, d, ed, t_max, et_max, (q[o], q[o + 1], q[o + 2]),
-                        (q[o + 9], q[o + 10], q[o + 11]), (q[o + 3], q[o + 4], q[o + 5]),
-                        (q[o + 6], q[o + 7], q[o + 8]), (q[o + 12], q[o + 13], q[o + 14],
-                                                         q[o + 15]))
+def blocker_hit(a, d, ed, t_max, et_max, bl):  # pragma: no cover - compiled
+    """The exact test against one blocker ``bl`` (a :class:`BlockerRow`)."""
+    if bl.kind == SPHERE:
+        return sphere_hit(a, d, ed, t_max, et_max, bl.p, bl.e1[0] * bl.e1[0])
+    if bl.kind == BOX:
+        return box_hit(a, d, ed, t_max, et_max, bl.p, bl.e1)
+    if bl.kind == QUAD:
+        return quad_hit(a, d, ed, t_max, et_max, bl.p, bl.n, bl.e1, bl.e2, bl.gram)
     return MAYBE  # triangles: Embree's float32 hits, then the numpy test
 
 
@@ -324,7 +277,7 @@ def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict):  # pragma: no 
         Segment ends (scene units).
     inside : (>= nn,) bool
         End inside the medium box.
-    rows : (B, COLS) float
+    rows : (B, F) float
     test_all : bool
         :func:`table`'s.
     ok : (N,) bool
@@ -332,12 +285,12 @@ def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict):  # pragma: no 
         written for every decided segment.
     photon : (>= nn,) int64
     verdict : (>= nn,) int64
-        ``CLEAR``, ``BLOCKED`` or ``UNSURE``, written.
+        ``CLEAR``, ``BLOCKED`` or ``DEFER``, written.
 
     Returns
     -------
     bool
-        Some segment is ``UNSURE``.
+        Some segment is ``DEFER``.
     """
     unsure = False
     # Loops over the blocker rows live here, not in the inlined tests: numba keeps a
@@ -349,14 +302,12 @@ def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict):  # pragma: no 
         eln = 4.0 * U * ln  # np.linalg.norm: three squares summed, a square root
         tested = MAYBE if test_all else NO  # kept by occluded for its exact test
         for k in range(rows.shape[0]):
-            lo = (rows[k, LO], rows[k, LO + 1], rows[k, LO + 2])
-            hi = (rows[k, HI], rows[k, HI + 1], rows[k, HI + 2])
-            if tested != YES and meets(ai, bi, lo, hi):
-                if np.isnan(rows[k, PLANE]):
+            bl = load(rows, k, BlockerRow)
+            if tested != YES and meets(ai, bi, bl):
+                if bl.kind != QUAD:  # planar: the quads (Blockers.planes not NaN)
                     tested = YES
                 else:
-                    pl = (rows[k, PLANE], rows[k, PLANE + 1], rows[k, PLANE + 2],
-                          rows[k, PLANE + 3])
+                    pl = (bl.normal[0], bl.normal[1], bl.normal[2], bl.offset)
                     tested = or3(tested, crosses_plane(ai, bi, ln, eln, pl))
         res = tested
         if tested != NO and not test_all:
@@ -367,12 +318,12 @@ def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict):  # pragma: no 
                 t_max, et_max = ln - SHADOW_EPS, eln + U * ln
                 for k in range(rows.shape[0]):
                     if hit != YES:
-                        hit = or3(hit, blocker_hit(rows[k, KIND], ai, d, ed, t_max, et_max,
-                                                   params(rows, k)))
+                        hit = or3(hit, blocker_hit(ai, d, ed, t_max, et_max,
+                                                   load(rows, k, BlockerRow)))
             res = and3(tested, hit)
-        v = CLEAR if res == NO else BLOCKED if res == YES else UNSURE
+        v = CLEAR if res == NO else BLOCKED if res == YES else DEFER
         verdict[i] = v
-        if v == UNSURE:
+        if v == DEFER:
             unsure = True
         else:
             ok[photon[i]] = inside[i] and v == CLEAR

@@ -24,7 +24,9 @@ from psurf_core import (
     trace_emit,
     trace_emit_compiled,
 )
-from psurf_core.geometry import blockers_of
+from psurf_core.constants import BOX_EPS
+from psurf_core.geometry import blockers_of, inside_box
+from psurf_core.kernels.buffers import HitBuffers
 from psurf_core.trace import PhotonPaths, trace
 
 FIELDS = [f.name for f in fields(PhotonPaths)]
@@ -94,15 +96,14 @@ def test_workspace_reuse(monkeypatch):
     assert trace_buffers._local.ws.n == 1400
 
 
-def test_recycled_outputs(monkeypatch):
-    """Returned arrays live in recycled blocks: a block is reused once its arrays (and every
+def test_reused_outputs(monkeypatch):
+    """The returned arrays live in reused buffers: one is reused once its arrays (and every
     view of them) are dropped, never while any is held."""
-    rc = trace_buffers.Recycler()
-    monkeypatch.setattr(trace_buffers._local, "recycler", rc, raising=False)
+    monkeypatch.setattr(trace_compiled, "OUTPUTS", HitBuffers())
     sc = scene("area_occluder")
     bl = blockers_of(sc)
     first = trace(sc, 2000, np.random.default_rng(1), blockers=bl)
-    held = first.x[:, 1]  # a view keeps first.x's block
+    held = first.x[:, 1]  # a view keeps first.x's buffer
     copy = {f: getattr(first, f).copy() for f in FIELDS[1:]}
     held_copy = held.copy()
     addr = first.x.ctypes.data
@@ -117,8 +118,6 @@ def test_recycled_outputs(monkeypatch):
     again = trace(sc, 2000, np.random.default_rng(1), blockers=bl)
     for f in FIELDS[1:]:
         assert getattr(again, f).tobytes() == copy[f].tobytes(), f
-    # Blocks are reused, not piled up: two traces alive at a time need a handful.
-    assert len(rc.blocks) <= rc.keep
     dropped = trace(sc, 2000, np.random.default_rng(7), blockers=bl).x.ctypes.data
     assert trace(sc, 2000, np.random.default_rng(8), blockers=bl).x.ctypes.data == dropped
 
@@ -168,15 +167,14 @@ def _scalars(g, u, lg, st, q, albedo, ok, out_mu, out_t, out_keep):
 
 
 @njit
-def _segments(x, w, t, bmin, bmax, lo, hi, beta, q, albedo, out_x, out_c, out_in, out_b):
+def _segments(x, w, t, bmin, bmax, beta, q, albedo, out_x, out_c, out_in, out_b):
     b0, b1 = (bmin[0], bmin[1], bmin[2]), (bmax[0], bmax[1], bmax[2])
-    l0, h0 = (lo[0], lo[1], lo[2]), (hi[0], hi[1], hi[2])
     for i in range(x.shape[0]):
         a, d = (x[i, 0], x[i, 1], x[i, 2]), (w[i, 0], w[i, 1], w[i, 2])
         e = ref.advance(a, d, t[i])
         out_x[i] = e
         out_c[i] = ref.segment_clip(a, d, t[i], b0, b1)
-        out_in[i] = ref.inside(e, l0, h0)
+        out_in[i] = inside_box(e, b0, b1)
         out_b[i] = ref.scattered_weight((beta[i, 0], beta[i, 1], beta[i, 2]), q, albedo)
 
 
@@ -244,11 +242,12 @@ def test_scalar_twins(g, q):
 
 def test_segment_twins():
     """``advance``, ``segment_clip`` (from inside, outside, on the boundary, along a face,
-    axis-parallel), ``inside`` (on the slackened boundary) and ``scattered_weight``."""
+    axis-parallel), ``geometry.inside_box`` as Trace calls it (on the slackened boundary) and
+    ``scattered_weight``."""
     rng = np.random.default_rng(3)
     m = 6000
     bmin, bmax = np.array([-1.0, -0.5, -2.0]), np.array([1.0, 0.5, 2.0])
-    lo, hi = bmin - ref.BOX_SLACK, bmax + ref.BOX_SLACK
+    hi = bmax + BOX_EPS
     x = rng.uniform(-3, 3, (m, 3))
     x[:500, 0] = bmin[0]  # on a face
     x[500:1000] = rng.choice([-1.0, 1.0], (500, 3)) * bmax  # on corners
@@ -265,10 +264,10 @@ def test_segment_twins():
     for q in (1.0, 0.9):
         out_x, out_c = np.empty((m, 3)), np.empty((m, 2))
         out_in, out_b = np.empty(m, dtype=bool), np.empty((m, 3))
-        _segments(x, w, t, bmin, bmax, lo, hi, beta, q, 0.8, out_x, out_c, out_in, out_b)
+        _segments(x, w, t, bmin, bmax, beta, q, 0.8, out_x, out_c, out_in, out_b)
         assert _same(out_x, ref.advance(x, w, t))
         assert _same(out_c, ref.segment_clip(x, w, t, bmin, bmax))
-        assert _same(out_in, ref.inside(ref.advance(x, w, t), lo, hi))
+        assert _same(out_in, inside_box(ref.advance(x, w, t), bmin, bmax))
         assert _same(out_b, ref.scattered_weight(beta, q, 0.8))
 
 

@@ -20,6 +20,8 @@ from trace_scenes import scene
 from psurf_core import trace_shadow as sh
 from psurf_core.constants import SHADOW_EPS
 from psurf_core.geometry import _crosses_plane, blockers_of
+from psurf_core.kernels.shadow import BlockerRow
+from psurf_core.records import load
 from psurf_core.trace import trace
 
 
@@ -30,9 +32,7 @@ def _near(a, b, rows, test_all, out):
         ai, bi = (a[i, 0], a[i, 1], a[i, 2]), (b[i, 0], b[i, 1], b[i, 2])
         near = test_all
         for k in range(rows.shape[0]):
-            lo = (rows[k, sh.LO], rows[k, sh.LO + 1], rows[k, sh.LO + 2])
-            hi = (rows[k, sh.HI], rows[k, sh.HI + 1], rows[k, sh.HI + 2])
-            near |= sh.meets(ai, bi, lo, hi)
+            near |= sh.meets(ai, bi, load(rows, k, BlockerRow))
         out[i] = near
 
 
@@ -47,8 +47,8 @@ def _classify(blockers, a, b):
     inside = np.ones(idx.size, dtype=bool)
     unsure = sh.shade(idx.size, a[idx], b[idx], inside, rows, test_all, ok,
                       np.arange(idx.size), v)
-    assert unsure == (v == sh.UNSURE).any()
-    decided = v != sh.UNSURE
+    assert unsure == (v == sh.DEFER).any()
+    decided = v != sh.DEFER
     assert (ok[decided] == (v[decided] == sh.CLEAR)).all()
     verdict[idx] = v
     return near, verdict
@@ -83,7 +83,7 @@ def _contexts(n, rng):
 
 def _check(blockers, a, b, rng, min_decided=0.0):
     near, verdict = _classify(blockers, a, b)
-    decided = verdict != sh.UNSURE
+    decided = verdict != sh.DEFER
     for idx in _contexts(len(a), rng):
         # ray_parallelogram multiplies inf by 0 for a segment exactly parallel to the light
         # (the box faces' segments): numpy warns, the answer stands.
