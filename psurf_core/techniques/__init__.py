@@ -105,9 +105,9 @@ def _register_builtin() -> None:
              summary="photon cylinder [t2, ph1], axis x2 + h w2; K>=2")
     register("disk", multi("disks", "PhotonDisk"), has_short=True,
              summary="photon disk [t1, cos th1], half-plane through x1; K>=2")
-    register("hyperboloid", multi("revolutions", "Hyperboloid"), has_short=True,
+    register("hyperboloid", multi("hyperboloids", "Hyperboloid"), has_short=True,
              summary="hyperboloid [t1, ph2]: ray x1 + t w1 revolved about (x2, A3); K>=2")
-    register("torus", multi("revolutions", "Torus"),
+    register("torus", multi("tori", "Torus"),
              summary="torus [cos th1, ph2]: meridian circle revolved about (x2, A3); K>=2")
     # Single scattering (K = 1).
     register("ss-sphere", multi("single", "SingleSphere"),
