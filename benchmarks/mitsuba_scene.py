@@ -35,7 +35,9 @@ Mitsuba is imported lazily (:func:`import_mitsuba`): it is an optional extra (``
 
 from __future__ import annotations
 
+import glob
 import os
+import re
 import subprocess
 import sys
 import time
@@ -72,8 +74,29 @@ print('ok')
 """
 
 
+#: Oldest LLVM that drjit 1.5's LLVM backend compiles with here (15 and 16 abort).
+MIN_LLVM = 17
+
+
+def newest_llvm(min_version: int = MIN_LLVM) -> str | None:
+    """Path of the newest ``libLLVM`` shared library of at least ``min_version``, or ``None``."""
+    best, best_v = None, -1
+    paths = glob.glob("/usr/lib/*/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*")
+    for path in paths:
+        m = re.search(r"libLLVM(?:-|\.so\.)(\d+)", os.path.basename(path))
+        if m and int(m.group(1)) >= min_version and int(m.group(1)) > best_v:
+            best, best_v = path, int(m.group(1))
+    return best
+
+
 def import_mitsuba():
-    """The ``mitsuba`` module, or ``None`` when it is not installed (the ``bench`` extra)."""
+    """The ``mitsuba`` module, or ``None`` when it is not installed (the ``bench`` extra).
+
+    Points drjit at :func:`newest_llvm` (``DRJIT_LIBLLVM_PATH``) unless that is already set:
+    drjit may otherwise load an older LLVM that cannot compile its kernels.
+    """
+    if "DRJIT_LIBLLVM_PATH" not in os.environ and (lib := newest_llvm()) is not None:
+        os.environ["DRJIT_LIBLLVM_PATH"] = lib
     try:
         import mitsuba
     except ImportError:
