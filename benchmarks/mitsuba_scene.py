@@ -197,8 +197,10 @@ def _mesh(mi, name: str, tris: np.ndarray, radiance=None):
     f = tris.shape[0]
     mesh = mi.Mesh(name, 3 * f, f, props=props, has_vertex_normals=False)
     params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(tris.reshape(-1))
-    params["faces"] = mi.UInt32(np.arange(3 * f, dtype=np.uint32))
+    # The buffers' own types: dynamic arrays in every variant (mi.Float is a plain float in
+    # the scalar ones).
+    params["vertex_positions"] = type(params["vertex_positions"])(tris.reshape(-1))
+    params["faces"] = type(params["faces"])(np.arange(3 * f, dtype=np.uint32))
     params.update()
     return mesh
 
