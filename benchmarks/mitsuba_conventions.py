@@ -1,0 +1,77 @@
+"""Print the numbers behind ``tests/test_vs_mitsuba.py``'s convention checks.
+
+Usage: ``python benchmarks/mitsuba_conventions.py [--variant V]``. Runs each check of the test
+with the test's scenes, sample counts and seeds (its helpers, imported) and prints, per check,
+the largest per-pixel ``|z|``, the aggregate (image-sum) z per channel, Mitsuba's image sum over
+the oracle's and that sum's relative standard error: how closely the converted scene agrees,
+not only that it passes. The test asserts; this only reports.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+import test_vs_mitsuba as T  # noqa: E402
+
+from psurf_core.camera import project  # noqa: E402
+
+
+def _row(label, m, se, ref, ref_se, mask=None):
+    z, agg = T._z(m, se, ref, ref_se, mask)
+    sel = (slice(None),) if mask is None else (mask,)
+    ratio = m[sel].sum(axis=0) / ref[sel].sum(axis=0)
+    rel_se = np.sqrt((se[sel] ** 2 + np.broadcast_to(ref_se, se.shape)[sel] ** 2).sum(axis=0))
+    rel_se /= ref[sel].sum(axis=0)
+    fmt = ", ".join
+    print(f"| {label} | {z.max():.2f} | {fmt(f'{a:+.2f}' for a in agg)} "
+          f"| {fmt(f'{r:.4f}' for r in ratio)} | {fmt(f'{s:.4f}' for s in rel_se)} |")
+
+
+def main(argv=None) -> int:
+    """Command line (module docstring)."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--variant", default=None)
+    args = ap.parse_args(argv)
+    variant = T.ms.pick_variant(args.variant)
+    print(f"Mitsuba variant {variant}\n")
+    print("| check | max per-pixel abs z | aggregate z (R, G, B) | Mitsuba sum / oracle sum "
+          "| rel. s.e. of the sum |\n|---|---:|---:|---:|---:|")
+    for g, occ, label in ((0.0, (), "iso"),
+                          (0.5, (T.SphereOccluder(np.array([-0.1, 0.0, -0.3]), 0.3),),
+                           "hg-sphere")):
+        scene = T._scene([T.POINT], occ, g=g)
+        fine, coarse = T._pixel_quadrature(scene, 8), T._pixel_quadrature(scene, 4)
+        px, py, _ = project(scene.camera, T.POINT.position[None])
+        mask = np.ones((T.H, T.W), bool)
+        mask[max(int(py[0]) - 1, 0): int(py[0]) + 2, max(int(px[0]) - 1, 0): int(px[0]) + 2] = 0
+        m, se = T._mitsuba(scene, passes=32, spp=128, seed=3)
+        _row(f"point K=1 {label} vs pixel quadrature", m, se, fine, np.abs(fine - coarse), mask)
+        for flip in (np.fliplr, np.flipud):
+            z, _ = T._z(flip(m), flip(se), fine, np.abs(fine - coarse), mask)
+            print(f"| (the same, image {flip.__name__}: rejected) | {z.max():.0f} | | | |")
+    for window, seeds in (((1, 1), (11, 12)), ((1, -1), (11, 12)), ((2, 3), (21, 22))):
+        scene = T._scene([T.AREA, T.TETRA], T.OCCLUDERS, g=0.4, sigma_s=1.2, sigma_a=0.2,
+                         kmin=window[0], kmax=window[1])
+        ref, ref_se = T._psurf_reference(scene, passes=32, spp=32, seed=seeds[0])
+        m, se = T._mitsuba(scene, passes=32, spp=128, seed=seeds[1])
+        k = f"{window[0]}..{'inf' if window[1] < 0 else window[1]}"
+        _row(f"area + mesh lights, occluders, K={k} vs psurf reference", m, se, ref, ref_se)
+        if window == (2, 3):
+            two, two_se = T._psurf_reference(scene.with_scatter(2, 2), passes=32, spp=32,
+                                             seed=23)
+            _, agg = T._z(m, se, two, two_se)
+            print(f"| (K=2..3 against K=2..2: rejected) | | "
+                  f"{', '.join(f'{a:+.1f}' for a in agg)} | | |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
