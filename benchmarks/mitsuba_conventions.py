@@ -26,10 +26,10 @@ from psurf_core.camera import project  # noqa: E402
 
 def _row(label, m, se, ref, ref_se, mask=None):
     z, agg = T._z(m, se, ref, ref_se, mask)
-    sel = (slice(None),) if mask is None else (mask,)
-    ratio = m[sel].sum(axis=0) / ref[sel].sum(axis=0)
-    rel_se = np.sqrt((se[sel] ** 2 + np.broadcast_to(ref_se, se.shape)[sel] ** 2).sum(axis=0))
-    rel_se /= ref[sel].sum(axis=0)
+    mask = np.ones(m.shape[:2], bool) if mask is None else mask
+    ref_se = np.broadcast_to(ref_se, se.shape)
+    ratio = m[mask].sum(axis=0) / ref[mask].sum(axis=0)
+    rel_se = np.sqrt((se[mask] ** 2 + ref_se[mask] ** 2).sum(axis=0)) / ref[mask].sum(axis=0)
     fmt = ", ".join
     print(f"| {label} | {z.max():.2f} | {fmt(f'{a:+.2f}' for a in agg)} "
           f"| {fmt(f'{r:.4f}' for r in ratio)} | {fmt(f'{s:.4f}' for s in rel_se)} |")

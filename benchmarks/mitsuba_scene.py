@@ -296,6 +296,13 @@ def scene_dict(scene: Scene, spp: int = 16) -> dict:
     return d
 
 
+def pass_seed(seed: int, n: int, tag: int = 0) -> int:
+    """32-bit sampler seed of pass ``n`` of a render with seed ``seed`` (``tag`` 0: counted
+    passes, 1: warm-up, 2: calibration), from ``SeedSequence([seed, n, tag])`` as psurf's
+    passes draw theirs: distinct for every pass and seed, and any ``seed >= 0`` fits."""
+    return int(np.random.SeedSequence([int(seed), int(n), int(tag)]).generate_state(1)[0])
+
+
 @dataclass
 class MitsubaRender:
     """Accumulated Mitsuba passes of one scatter window (the psurf ``render`` .npz fields).
@@ -366,8 +373,9 @@ class MitsubaRenderer:
 
     def render(self, *, passes: int | None = None, seconds: float | None = None,
                seed: int = 0, warmup: bool = True) -> MitsubaRender:
-        """Run passes ``seed * 2**20 + i`` until ``passes`` are done or ``seconds`` of wall time
-        are spent (the pass in flight finishes; at least one pass).
+        """Run passes ``i = 0, 1, ...`` with sampler seeds :func:`pass_seed` ``(seed, i)`` until
+        ``passes`` are done or ``seconds`` of wall time are spent (the pass in flight finishes;
+        at least one pass).
 
         The warm-up pass (a different seed, not counted) compiles the kernels outside the
         clock, as psurf's ``render --time`` compiles before its clock starts.
@@ -376,13 +384,13 @@ class MitsubaRenderer:
             raise ValueError("give exactly one of passes and seconds")
         t0 = time.perf_counter()
         if warmup:
-            self.pass_image(seed=(1 << 31) - 1 - int(seed))
+            self.pass_image(seed=pass_seed(seed, 0, tag=1))
         t_warm = time.perf_counter() - t0
         total = total_sq = None
         n = 0
         start = time.perf_counter()
         while True:
-            img = self.pass_image(seed=(int(seed) << 20) + n)
+            img = self.pass_image(seed=pass_seed(seed, n))
             total = img.copy() if total is None else total + img
             total_sq = img * img if total_sq is None else total_sq + img * img
             n += 1

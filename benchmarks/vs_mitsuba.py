@@ -132,9 +132,9 @@ def psurf_render(scene_path, kmin, kmax, estimator, seconds, seed, jobs, photons
 def calibrate_spp(renderer_for, seconds: float, spp0: int = 16, target_passes: int = 40) -> int:
     """Samples per pixel per Mitsuba pass so that a pass takes about ``seconds / target``."""
     r = renderer_for(spp0)
-    r.pass_image(seed=(1 << 31) - 7)  # compiles
+    r.pass_image(seed=ms.pass_seed(0, 0, tag=2))  # compiles
     t0 = time.perf_counter()
-    r.pass_image(seed=(1 << 31) - 8)
+    r.pass_image(seed=ms.pass_seed(0, 1, tag=2))
     dt_pass = max(time.perf_counter() - t0, 1e-4)
     spp = int(spp0 * (seconds / target_passes) / dt_pass)
     return int(np.clip(1 << max(int(np.log2(max(spp, 1))), 0), 1, 1 << 14))

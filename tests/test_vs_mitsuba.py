@@ -209,3 +209,8 @@ def test_scatter_window_is_a_difference_of_depths(variant):
     two, two_se = _psurf_reference(scene.with_scatter(2, 2), passes=32, spp=32, seed=23)
     _, agg = _z(m, se, two, two_se)
     assert np.all(np.abs(agg) > Z_MAX), f"K=2..2 not rejected: aggregate z {agg}"
+
+
+def test_pass_seeds_are_distinct_32_bit():
+    seeds = {ms.pass_seed(s, n, t) for s in (0, 1, 4242, 10**9) for n in range(50) for t in (0, 1)}
+    assert len(seeds) == 400 and all(0 <= x < 2**32 for x in seeds)
