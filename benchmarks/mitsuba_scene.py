@@ -31,10 +31,17 @@ quadrature and reference in ``tests/test_vs_mitsuba.py``):
   difference is one unbiased estimate; its variance across passes is what this module reports.
 
 Mitsuba is imported lazily (:func:`import_mitsuba`): it is an optional extra (``bench``).
+
+As a command, ``python benchmarks/mitsuba_scene.py SCENE.toml (--time S | --passes P)
+[--spp N] [--min-scatter A] [--max-scatter B] [--seed S] [--jobs J] [--variant V] --out X.npz``
+renders the converted scene and writes an ``app.py render``-style .npz (``mean``, ``var``,
+``passes``, ``seconds``, ``spp``, ``seed``, ``min_scatter``, ``max_scatter``, ``estimator`` =
+``mitsuba-volpath:<variant>``), which ``app.py compare --reference`` also reads.
 """
 
 from __future__ import annotations
 
+import argparse
 import glob
 import os
 import re
@@ -329,6 +336,18 @@ class MitsubaRender:
     variant: str
 
 
+def save_npz(path, render: MitsubaRender, scene: Scene, seed: int) -> None:
+    """Write ``render`` as an ``app.py render``-style .npz (module docstring), atomically."""
+    path = os.fspath(path)
+    tmp = path + ".tmp.npz"
+    np.savez(tmp, mean=render.mean.astype(np.float32), var=render.var.astype(np.float32),
+             passes=render.passes, spp=render.spp, seconds=render.seconds, seed=int(seed),
+             min_scatter=scene.min_scatter, max_scatter=scene.max_scatter,
+             estimator=f"mitsuba-volpath:{render.variant}",
+             warmup_seconds=render.warmup_seconds)
+    os.replace(tmp, path)
+
+
 class MitsubaRenderer:
     """Renders a psurf scene's scatter window with Mitsuba's ``volpath``, pass by pass.
 
@@ -401,3 +420,35 @@ class MitsubaRenderer:
         var = (total_sq - n * mean * mean) / (n - 1) if n > 1 else np.zeros_like(mean)
         return MitsubaRender(mean, np.maximum(var, 0.0), n, self.spp, spent, t_warm,
                              self.variant)
+
+
+def main(argv=None) -> int:
+    """Command line (module docstring)."""
+    from psurf_core.scene_io import load_scene
+
+    ap = argparse.ArgumentParser(description="Render a psurf scene with Mitsuba's volpath.")
+    ap.add_argument("scene", metavar="SCENE.toml")
+    budget = ap.add_mutually_exclusive_group(required=True)
+    budget.add_argument("--time", type=float, help="seconds of wall time (after a warm-up)")
+    budget.add_argument("--passes", type=int)
+    ap.add_argument("--spp", type=int, default=16, help="samples per pixel per pass")
+    ap.add_argument("--min-scatter", type=int, default=None)
+    ap.add_argument("--max-scatter", type=int, default=None)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--jobs", type=int, default=2, help="Dr.Jit threads")
+    ap.add_argument("--variant", default=None)
+    ap.add_argument("--out", required=True, metavar="OUT.npz")
+    args = ap.parse_args(argv)
+    variant = pick_variant(args.variant)
+    scene = load_scene(args.scene).with_scatter(args.min_scatter, args.max_scatter)
+    r = MitsubaRenderer(scene, spp=args.spp, threads=args.jobs).render(
+        passes=args.passes, seconds=args.time, seed=args.seed)
+    save_npz(args.out, r, scene, args.seed)
+    print(f"mitsuba {variant}: {r.passes} passes x {r.spp} spp, {r.seconds:.2f} s "
+          f"(warm-up {r.warmup_seconds:.2f} s) -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    sys.exit(main())

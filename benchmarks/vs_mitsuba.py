@@ -152,30 +152,39 @@ def mitsuba_render(scene, seconds, seed, jobs, spp):
             "spp": r.spp, "warmup_seconds": r.warmup_seconds, "variant": r.variant}
 
 
+def _load_npz(path: Path) -> dict:
+    with np.load(path) as z:
+        d = {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
+    return d | {"mean": np.asarray(d["mean"], np.float64), "var": np.asarray(d["var"], np.float64)}
+
+
 def reference(case, scene, scene_path, kmin, kmax, args):
-    """The case's long reference (cached as ``--work/refs/<case>_<kind>_<seconds>s.npz``)."""
+    """The case's long reference, cached as ``--work/refs/<case>_<kind>_<seconds>s.npz`` (an
+    ``app.py render``-style .npz; delete it to render anew)."""
     refs = Path(args.work) / "refs"
     refs.mkdir(parents=True, exist_ok=True)
     path = refs / f"{case}_{args.reference}_{args.ref_time:g}s.npz"
     if path.exists():
-        with np.load(path) as z:
-            return {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files} | {
-                "cached": str(path)}
+        d = _load_npz(path)
+        if (int(d["min_scatter"]), int(d["max_scatter"])) != (kmin, kmax):
+            raise SystemExit(f"{path}: cached for another scatter window; delete it")
+        return d | {"cached": str(path)}
     if args.reference == "psurf":
-        d = psurf_render(scene_path, kmin, kmax, "reference", args.ref_time, REFERENCE_SEED,
-                         args.jobs, None, path)
-        d = {k: d[k] for k in ("mean", "var", "passes", "seconds", "spp")}
+        psurf_render(scene_path, kmin, kmax, "reference", args.ref_time, REFERENCE_SEED,
+                     args.jobs, None, path)
     else:
-        d = mitsuba_render(scene, args.ref_time, REFERENCE_SEED, args.jobs, args.mitsuba_spp)
-        d = {k: d[k] for k in ("mean", "var", "passes", "seconds", "spp", "variant")}
-    np.savez(path, **d)
-    return d
+        spp = args.mitsuba_spp or calibrate_spp(
+            lambda s: ms.MitsubaRenderer(scene, spp=s, threads=args.jobs), args.ref_time)
+        r = ms.MitsubaRenderer(scene, spp=spp, threads=args.jobs).render(
+            seconds=args.ref_time, seed=REFERENCE_SEED)
+        ms.save_npz(path, r, scene, REFERENCE_SEED)
+    return _load_npz(path)
 
 
 #: Fewer passes than this give no ``sum_z``: a per-pass variance from a handful of passes of
-#: a heavy-tailed estimator is too unreliable to divide by (4 passes of ``paper-single`` gave
-#: -6.8 where 40 gave -0.9 on ``study_medium_k1``).
-MIN_PASSES_FOR_Z = 10
+#: a heavy-tailed estimator is too unreliable to divide by (docs/vs_mitsuba.md: 4 passes of
+#: ``paper-single`` gave -6.8 where 40 gave -0.9; 14 of ``paper-multi`` -3.1 where 269 agree).
+MIN_PASSES_FOR_Z = 30
 
 
 def score(img: dict, ref: dict) -> dict:
