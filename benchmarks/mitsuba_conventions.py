@@ -44,10 +44,12 @@ def main(argv=None) -> int:
     print(f"Mitsuba variant {variant}\n")
     print("| check | max per-pixel abs z | aggregate z (R, G, B) | Mitsuba sum / oracle sum "
           "| rel. s.e. of the sum |\n|---|---:|---:|---:|---:|")
-    for g, occ, label in ((0.0, (), "iso"),
-                          (0.5, (T.SphereOccluder(np.array([-0.1, 0.0, -0.3]), 0.3),),
-                           "hg-sphere")):
-        scene = T._scene([T.POINT], occ, g=g)
+    for g, occ, camera, label in (
+            (0.0, (), (-4.0, 40.0), "iso"),
+            (0.5, (T.SphereOccluder(np.array([-0.1, 0.0, -0.3]), 0.3),), (-4.0, 40.0),
+             "hg-sphere"),
+            (0.0, (), (-0.9, 70.0), "camera inside the medium")):
+        scene = T._scene([T.POINT], occ, g=g, camera=camera)
         fine, coarse = T._pixel_quadrature(scene, 8), T._pixel_quadrature(scene, 4)
         px, py, _ = project(scene.camera, T.POINT.position[None])
         mask = np.ones((T.H, T.W), bool)

@@ -8,7 +8,8 @@ occluders, and the same scatter window (``max_depth`` and the difference of two 
 
 * Point-light single scattering against psurf's deterministic quadrature, integrated over each
   pixel's area (Gauss-Legendre in the pixel, x the 1D quadrature along each ray), on an
-  asymmetric scene; the mirrored images must fail the same check (the check can fail).
+  asymmetric scene, with the camera outside the medium and inside it (a wide view); the
+  mirrored images must fail the same check (the check can fail).
 * Area + mesh lights with occluders (K = 1, the window K = 2..3, and unlimited) against
   psurf's reference path tracer (itself checked against quadratures and an independent walk in
   ``test_reference.py``); the window one also rejects the neighbouring window K = 2..2.
@@ -70,8 +71,11 @@ OCCLUDERS = (
 )
 
 
-def _scene(lights, occluders=(), g=0.0, sigma_s=0.8, sigma_a=0.2, kmin=1, kmax=1):
-    cam = Camera(np.array([0.0, 0.0, -4.0]), np.zeros(3), np.array([0.0, 1.0, 0.0]), 40.0, W, H)
+def _scene(lights, occluders=(), g=0.0, sigma_s=0.8, sigma_a=0.2, kmin=1, kmax=1,
+           camera=(-4.0, 40.0)):
+    """The test scene; ``camera`` is (z of the position on the axis, vertical fov)."""
+    z, fov = camera
+    cam = Camera(np.array([0.0, 0.0, z]), np.zeros(3), np.array([0.0, 1.0, 0.0]), fov, W, H)
     phase = Phase("hg", g) if g else Phase()
     med = Medium(-np.ones(3), np.ones(3), sigma_s, sigma_a, phase)
     return Scene(cam, med, tuple(lights), tuple(occluders), kmin, kmax)
@@ -169,12 +173,14 @@ def _assert_agree(a, se_a, b, se_b=0.0, mask=None, label=""):
 
 
 @pytest.mark.parametrize(
-    "g, occluders",
-    [(0.0, ()), (0.5, (SphereOccluder(np.array([-0.1, 0.0, -0.3]), 0.3),))],
-    ids=["iso", "hg-sphere"],
+    "g, occluders, camera",
+    [(0.0, (), (-4.0, 40.0)),
+     (0.5, (SphereOccluder(np.array([-0.1, 0.0, -0.3]), 0.3),), (-4.0, 40.0)),
+     (0.0, (), (-0.9, 70.0))],
+    ids=["iso", "hg-sphere", "camera-inside"],
 )
-def test_point_single_scatter_matches_pixel_quadrature(variant, g, occluders):
-    scene = _scene([POINT], occluders, g=g)
+def test_point_single_scatter_matches_pixel_quadrature(variant, g, occluders, camera):
+    scene = _scene([POINT], occluders, g=g, camera=camera)
     fine, coarse = _pixel_quadrature(scene, 8), _pixel_quadrature(scene, 4)
     # The light's pixel holds the 1/r singularity (NEE to a point: infinite variance there,
     # and the pixel quadrature converges slowly); its neighbours are left out too.
