@@ -44,17 +44,13 @@ def main(argv=None) -> int:
     print(f"Mitsuba variant {variant}\n")
     print("| check | max per-pixel abs z | aggregate z (R, G, B) | Mitsuba sum / oracle sum "
           "| rel. s.e. of the sum |\n|---|---:|---:|---:|---:|")
-    for g, occ, camera, label in (
-            (0.0, (), (-4.0, 40.0), "iso"),
-            (0.5, (T.SphereOccluder(np.array([-0.1, 0.0, -0.3]), 0.3),), (-4.0, 40.0),
-             "hg-sphere"),
-            (0.0, (), (-0.9, 70.0), "camera inside the medium")):
-        scene = T._scene([T.POINT], occ, g=g, camera=camera)
+    for label in T.POINT_CASES:
+        scene = T.point_scene(label)
         fine, coarse = T._pixel_quadrature(scene, 8), T._pixel_quadrature(scene, 4)
         px, py, _ = project(scene.camera, T.POINT.position[None])
         mask = np.ones((T.H, T.W), bool)
         mask[max(int(py[0]) - 1, 0): int(py[0]) + 2, max(int(px[0]) - 1, 0): int(px[0]) + 2] = 0
-        m, se = T._mitsuba(scene, passes=32, spp=128, seed=3)
+        m, se = T._mitsuba(scene, passes=32, spp=T.POINT_SPP[label], seed=3)
         _row(f"point K=1 {label} vs pixel quadrature", m, se, fine, np.abs(fine - coarse), mask)
         for flip in (np.fliplr, np.flipud):
             z, _ = T._z(flip(m), flip(se), fine, np.abs(fine - coarse), mask)
