@@ -4,20 +4,23 @@ Usage::
 
     python benchmarks/vs_mitsuba.py [--time 30] [--ref-time 600] [--cases a,b,...]
         [--estimator SPEC | --estimator CASE=SPEC ...] [--photons N] [--jobs 2]
-        [--reference mitsuba|psurf] [--mitsuba-spp N] [--variant V] [--seed S]
+        [--reference composite|mitsuba|psurf] [--mitsuba-spp N] [--variant V] [--seed S]
         [--out out/vs_mitsuba.json] [--md out/vs_mitsuba.md] [--work out/vs_mitsuba]
 
 (``make bench-mitsuba`` installs the ``bench`` extra and runs it.) For each case of
 :data:`CASES` (a bundled scene and a scatter window ``[min_scatter, max_scatter]``):
 
-1. **reference**: one long render, ``--ref-time`` seconds, seed ``1000`` (no contestant uses
-   it), cached in ``--work/refs``. By default Mitsuba's (``--reference mitsuba``): it runs
-   compiled on both cores, so it reaches a far lower noise floor than psurf's numpy path
-   tracer in the same time, and it shares no code with psurf, so a psurf bias shows in psurf's
-   score. ``--reference psurf`` uses psurf's ``reference`` estimator instead (shares no code
-   with Mitsuba). Both are path tracers with next-event estimation: for point lights and two or
-   more scattering events their variance is infinite (rare bright samples near the light), so
-   the reference's floor (reported) is high there.
+1. **reference**: long renders, ``--ref-time`` seconds each, seed ``1000`` (no contestant uses
+   it), cached in ``--work/refs``, summed (:func:`reference_parts`). By default
+   (``--reference composite``) single scattering comes from Mitsuba and two or more events from
+   psurf's ``planes``: a path tracer with next-event estimation is excellent at K = 1 but
+   converges slowly beyond it (per sample, Mitsuba's relVar at K = 2..3 is 20-30x that at
+   K = 1 on the study scenes, and from a point light its variance is infinite), while photon
+   planes are unbiased for K >= 2 and ~100x less noisy per second there (docs/vs_mitsuba.md).
+   The K = 1 part shares no code with psurf; the K >= 2 part shares psurf's tracing but not the
+   contestant's estimator, and Mitsuba's image-sum z against it checks it.
+   ``--reference mitsuba`` (or ``psurf``, its ``reference`` path tracer) renders the whole
+   window with one path tracer instead.
 2. **psurf**: ``app.py render SCENE --estimator SPEC --time T --jobs J`` with the window's
    ``--min-scatter/--max-scatter`` (``SPEC`` from :func:`recommended`, or ``--estimator``);
    kernels compile before its clock starts.
@@ -158,27 +161,71 @@ def _load_npz(path: Path) -> dict:
     return d | {"mean": np.asarray(d["mean"], np.float64), "var": np.asarray(d["var"], np.float64)}
 
 
-def reference(case, scene, scene_path, kmin, kmax, args):
-    """The case's long reference, cached as ``--work/refs/<case>_<kind>_<seconds>s.npz`` (an
+def reference_parts(kind: str, kmin: int, kmax: int) -> list[tuple[str, int, int]]:
+    """The renders ``(renderer, min_scatter, max_scatter)`` whose sum is a case's reference.
+
+    ``composite`` (the default): single scattering from Mitsuba, two or more events from
+    psurf's ``planes`` (unbiased for K >= 2, and per second far less noisy there than any path
+    tracer with next-event estimation: docs/vs_mitsuba.md); ``mitsuba`` and ``psurf`` (its
+    ``reference`` path tracer): the whole window from one renderer.
+    """
+    if kind != "composite":
+        return [(kind, kmin, kmax)]
+    parts = [("mitsuba", 1, 1)] if kmin == 1 else []
+    if kmax < 0 or kmax >= 2:
+        parts.append(("planes", max(kmin, 2), kmax))
+    return parts
+
+
+def _render_part(renderer, case, scene, scene_path, kmin, kmax, args) -> dict:
+    """One reference part, cached as ``--work/refs/<case>_<renderer>_K<a>-<b>_<s>s.npz`` (an
     ``app.py render``-style .npz; delete it to render anew)."""
     refs = Path(args.work) / "refs"
     refs.mkdir(parents=True, exist_ok=True)
-    path = refs / f"{case}_{args.reference}_{args.ref_time:g}s.npz"
-    if path.exists():
-        d = _load_npz(path)
-        if (int(d["min_scatter"]), int(d["max_scatter"])) != (kmin, kmax):
-            raise SystemExit(f"{path}: cached for another scatter window; delete it")
-        return d | {"cached": str(path)}
-    if args.reference == "psurf":
-        psurf_render(scene_path, kmin, kmax, "reference", args.ref_time, REFERENCE_SEED,
-                     args.jobs, None, path)
-    else:
-        spp = args.mitsuba_spp or calibrate_spp(
-            lambda s: ms.MitsubaRenderer(scene, spp=s, threads=args.jobs), args.ref_time)
-        r = ms.MitsubaRenderer(scene, spp=spp, threads=args.jobs).render(
-            seconds=args.ref_time, seed=REFERENCE_SEED)
-        ms.save_npz(path, r, scene, REFERENCE_SEED)
-    return _load_npz(path)
+    path = refs / f"{case}_{renderer}_K{kmin}-{kmax}_{args.ref_time:g}s.npz"
+    if not path.exists():
+        if renderer == "mitsuba":
+            sc = scene.with_scatter(kmin, kmax)
+            spp = args.mitsuba_spp or calibrate_spp(
+                lambda s: ms.MitsubaRenderer(sc, spp=s, threads=args.jobs), args.ref_time)
+            r = ms.MitsubaRenderer(sc, spp=spp, threads=args.jobs).render(
+                seconds=args.ref_time, seed=REFERENCE_SEED)
+            ms.save_npz(path, r, sc, REFERENCE_SEED)
+        else:
+            estimator = "reference" if renderer == "psurf" else renderer
+            psurf_render(scene_path, kmin, kmax, estimator, args.ref_time, REFERENCE_SEED,
+                         args.jobs, None, path)
+    d = _load_npz(path)
+    if (int(d["min_scatter"]), int(d["max_scatter"])) != (kmin, kmax):
+        raise SystemExit(f"{path}: rendered for another scatter window; delete it")
+    return d | {"path": str(path)}
+
+
+def reference(case, scene, scene_path, kmin, kmax, args) -> dict:
+    """The case's reference: the sum of its :func:`reference_parts`, each ``--ref-time``
+    seconds (independent renders, so the variances of their means add).
+
+    Returns
+    -------
+    dict
+        ``mean`` and ``var_mean`` (variance of the mean, per pixel) as (H, W, 3) arrays,
+        ``seconds`` (all parts) and ``parts`` (renderer, window, passes, spp, seconds, file).
+    """
+    mean = var_mean = None
+    parts, seconds = [], 0.0
+    for renderer, a, b in reference_parts(args.reference, kmin, kmax):
+        d = _render_part(renderer, case, scene, scene_path, a, b, args)
+        vm = d["var"] / max(int(d["passes"]), 1)
+        mean = d["mean"] if mean is None else mean + d["mean"]
+        var_mean = vm if var_mean is None else var_mean + vm
+        seconds += float(d["seconds"])
+        parts.append({"renderer": renderer, "min_scatter": a, "max_scatter": b,
+                      "estimator": str(d.get("estimator", renderer)),
+                      "passes": int(d["passes"]), "spp": int(d["spp"]),
+                      "photons_per_pass": (int(d["photons_per_pass"])
+                                           if "photons_per_pass" in d else None),
+                      "seconds": float(d["seconds"]), "file": d["path"]})
+    return {"mean": mean, "var_mean": var_mean, "seconds": seconds, "parts": parts}
 
 
 #: Fewer passes than this give no ``sum_z``: a per-pass variance from a handful of passes of
@@ -190,7 +237,7 @@ MIN_PASSES_FOR_Z = 30
 def score(img: dict, ref: dict) -> dict:
     """relMSE, Var, relVar and the image-sum z of a render against the reference."""
     var_mean = img["var"] / max(img["passes"], 1)
-    ref_var_mean = ref["var"] / max(int(ref["passes"]), 1)
+    ref_var_mean = ref["var_mean"]
     se = np.sqrt(var_mean.sum(axis=(0, 1)) + ref_var_mean.sum(axis=(0, 1)))
     with np.errstate(divide="ignore", invalid="ignore"):
         sum_z = (img["mean"].sum(axis=(0, 1)) - ref["mean"].sum(axis=(0, 1))) / se
@@ -224,16 +271,15 @@ def run_case(case, scene_path, kmin, kmax, estimator, args) -> dict:
     # seconds psurf measured: the same wall time on both sides.
     mt = mitsuba_render(scene, ps["seconds"], args.seed, args.jobs, args.mitsuba_spp)
     sp, sm = score(ps, ref), score(mt, ref)
-    floor = var_relmse(ref["var"] / int(ref["passes"]), ref["mean"])
+    floor = var_relmse(ref["var_mean"], ref["mean"])
     tn = (None if sp["relvar"] is None or sm["relvar"] is None
           else _ratio(sp["relvar"] * ps["seconds"], sm["relvar"] * mt["seconds"]))
     keep = ("passes", "seconds", "spp")
     return {
         "case": case, "scene": scene_path, "min_scatter": kmin, "max_scatter": kmax,
         "estimator": estimator,
-        "reference": {"kind": args.reference, "seconds": float(ref["seconds"]),
-                      "passes": int(ref["passes"]), "spp": int(ref["spp"]),
-                      "relmse_floor": floor, "cached": ref.get("cached")},
+        "reference": {"kind": args.reference, "seconds": ref["seconds"],
+                      "parts": ref["parts"], "relmse_floor": floor},
         "psurf": {k: ps[k] for k in (*keep, "photons_per_pass", "process_wall_seconds",
                                      "command")} | sp,
         "mitsuba": {k: mt[k] for k in (*keep, "warmup_seconds", "variant")} | sm
@@ -293,7 +339,8 @@ def main(argv=None) -> int:
     ap.add_argument("--photons", type=int, default=None,
                     help="psurf photons per pass (default: app.py render's)")
     ap.add_argument("--jobs", type=int, default=2, help="psurf --jobs and Dr.Jit threads")
-    ap.add_argument("--reference", choices=("mitsuba", "psurf"), default="mitsuba")
+    ap.add_argument("--reference", choices=("composite", "mitsuba", "psurf"),
+                    default="composite", help="reference_parts() (default: composite)")
     ap.add_argument("--mitsuba-spp", type=int, default=None,
                     help="Mitsuba samples per pixel per pass (default: calibrated)")
     ap.add_argument("--variant", default=None, help="Mitsuba variant (default: probed)")
