@@ -85,7 +85,8 @@ print('ok')
 """
 
 
-#: Oldest LLVM that drjit 1.5's LLVM backend compiles with here (15 and 16 abort).
+#: Oldest LLVM tried for drjit 1.5's LLVM backend: 15 and 16 abort ("Cannot select:
+#: fminimum"), 19 works; 17 and 18 (not in Debian 12) are untested.
 MIN_LLVM = 17
 
 

@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/vs_mitsuba.py [--time 30] [--ref-time 600] [--cases a,b,...]
+    python benchmarks/vs_mitsuba.py [--time 30] [--ref-time 300] [--cases a,b,...]
         [--estimator SPEC | --estimator CASE=SPEC ...] [--photons N] [--jobs 2]
         [--reference composite|mitsuba|psurf] [--mitsuba-spp N] [--variant V] [--seed S]
         [--out out/vs_mitsuba.json] [--md out/vs_mitsuba.md] [--work out/vs_mitsuba]
@@ -332,7 +332,8 @@ def main(argv=None) -> int:
     """Command line (module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--time", type=float, default=30.0, help="seconds of wall time per side")
-    ap.add_argument("--ref-time", type=float, default=600.0, help="reference render seconds")
+    ap.add_argument("--ref-time", type=float, default=300.0,
+                    help="seconds of each reference part (reference_parts)")
     ap.add_argument("--cases", default="all", help="comma-separated case names, or 'all'")
     ap.add_argument("--estimator", action="append", default=[],
                     help="SPEC for every case or CASE=SPEC (repeat); default: recommended()")
