@@ -101,7 +101,9 @@ def test_walker_equals_stages(path, pinhole, monkeypatch):
             assert not fused, name
             continue
         covered += 1
-        assert len(fused) > 1, name
+        # several chunks, where there are enough hits for the budget to split them (the
+        # dense scene's optical depth leaves some techniques a handful of hits)
+        assert len(fused) > 1 or sum(len(c[0].ray) for c in fused) < 100, name
         (a_idx, a_cols, a_val, a_keys), (b_idx, b_cols, b_val, b_keys) = (_flat(stage),
                                                                           _flat(fused))
         assert a_keys == b_keys, name
