@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -234,20 +235,49 @@ def test_cpu_clock_budget(tiny):
     assert row["runs"][0]["curve"][-1][0] >= 0.3
 
 
-def test_auto_photons_sizes_passes_by_a_timed_pass(monkeypatch):
-    """``--photons auto``: one timed pass of each estimator sizes its passes so that the
-    budget holds about TARGET_PASSES of them (within PHOTON_RANGE); the path tracer keeps
-    its settings."""
+def test_pass_model_recovers_cost_and_variance_terms():
+    """Two pass sizes fix ``seconds = c0 + c1 N`` and ``variance = Vj + Vp / N``."""
+    import psurf_core.pass_size as ps
+
+    c0, c1, vj, vp = 0.01, 5e-5, 4e-6, 3e-4
+    sizes = (128, 1024)
+    got = ps.pass_model(sizes, [c0 + c1 * n for n in sizes], [vj + vp / n for n in sizes])
+    np.testing.assert_allclose(got, (c0, c1, vj, vp), rtol=1e-9)
+
+
+def test_best_photons_minimises_the_equal_time_variance():
+    """``N* = sqrt(Vp c0 / (Vj c1))`` beats its neighbours; without a pixel term the
+    largest size that leaves MIN_PASSES passes in the budget; clipped to PHOTON_RANGE."""
+    import psurf_core.pass_size as ps
+
+    c0, c1, vj, vp = 0.01, 5e-5, 4e-6, 3e-4
+    n = ps.best_photons(c0, c1, vj, vp, 1e6)
+    assert n == int(np.sqrt(vp * c0 / (vj * c1)))
+
+    def cost(m):
+        return (vj + vp / m) * (c0 + c1 * m)
+
+    assert cost(n) <= min(cost(n // 2), cost(2 * n))
+    budget = 48.0  # 1 s a pass at MIN_PASSES = 48
+    assert ps.best_photons(c0, c1, 0.0, vp, budget) == int((1.0 - c0) / c1)
+    assert ps.best_photons(c0, 1e-12, 0.0, vp, budget) == ps.PHOTON_RANGE[1]
+    assert ps.best_photons(c0, c1, vj, 1e-300, budget) == ps.PHOTON_RANGE[0]
+
+
+def test_auto_photons_pilots_the_estimator(monkeypatch):
+    """``--photons auto`` measures the estimator's pass model on pilot passes (a real
+    render: the numbers it returns are finite and ordered) and keeps the path tracer's
+    settings."""
     import psurf_core.pass_size as ps
 
     scene = load_scene(Path(__file__).resolve().parent.parent / "scenes" / "area.toml")
+    scene = replace(scene, camera=replace(scene.camera, width=16, height=12))
     est = parse_estimator("planes", scene)
-    clock = iter([0.0, 0.5])  # the probe pass "takes" 0.5 s: 1000 photons
-    monkeypatch.setattr(ps.time, "perf_counter", lambda: next(clock))
-    n = ps.auto_photons(scene, est, RenderSettings(photons=7), 48.0)
-    assert n == 2000  # 48 s / 48 passes = 1 s a pass = 2000 photons
-    clock = iter([0.0, 1e-9])
-    monkeypatch.setattr(ps.time, "perf_counter", lambda: next(clock))
-    assert ps.auto_photons(scene, est, RenderSettings(), 48.0) == ps.PHOTON_RANGE[1]
+    c0, c1, vj, vp = ps.pilot(scene, est, RenderSettings(photons=7))
+    assert c0 >= 0 and c1 > 0 and vj >= 0 and vp > 0
+    seen = []
+    monkeypatch.setattr(ps, "pilot", lambda *a: seen.append(a) or (0.01, 5e-5, 4e-6, 3e-4))
+    assert ps.auto_photons(scene, est, RenderSettings(photons=7), 1e6) == 122
+    assert len(seen) == 1
     ref = parse_estimator("reference", scene)
     assert ps.auto_photons(scene, ref, RenderSettings(photons=7), 48.0) == 7
