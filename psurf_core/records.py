@@ -18,6 +18,7 @@ Every field is float64 (flags are 0.0 / 1.0): the flat view of a table is then a
 
 from __future__ import annotations
 
+import functools
 import typing
 
 import numpy as np
@@ -28,13 +29,15 @@ from numba.core.extending import overload
 Vec = tuple[float, float, float]
 
 
-def widths(cls) -> list[int]:
+@functools.cache
+def widths(cls) -> tuple[int, ...]:
     """Float columns of each field of the record class ``cls`` (3 for :data:`Vec`, else 1)."""
     hints = typing.get_type_hints(cls)  # resolves string annotations (``from __future__``)
-    return [len(typing.get_args(hints[n])) if typing.get_origin(hints[n]) is tuple else 1
-            for n in cls._fields]
+    return tuple(len(typing.get_args(hints[n])) if typing.get_origin(hints[n]) is tuple else 1
+                 for n in cls._fields)
 
 
+@functools.cache
 def dtype_of(cls) -> np.dtype:
     """The structured dtype of the record class ``cls`` (float64 fields, vectors as (3,))."""
     return np.dtype([(n, "f8", w) if w > 1 else (n, "f8")

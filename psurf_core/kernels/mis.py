@@ -84,6 +84,19 @@ def weight_of(group, me: int, weighting: str | None):
         return None, None
     power = weighting == "power"
     keys = tuple(member_key(m) for m in group)
+    key = (keys, me, power)
+    # Built once per key: composing makes numba dispatchers (~0.2 ms each), which every
+    # pass would otherwise pay again before the walker cache recognises the key.
+    if key not in _WEIGHTS:
+        _WEIGHTS[key] = _compose(fams, keys, me, power)
+    return _WEIGHTS[key], key
+
+
+#: Composed weights by key (:func:`weight_of`).
+_WEIGHTS: dict = {}
+
+
+def _compose(fams, keys, me, power):
     terms = [_member(f.density, j, *keys[j][3:], power) for j, f in enumerate(fams)]
     total, mine = _sum(terms), terms[me]
 
@@ -92,4 +105,4 @@ def weight_of(group, me: int, weighting: str | None):
         den = total(row, params)
         return mine(row, params) / den / params[me, 0] if den > 0.0 else 0.0
 
-    return w, (keys, me, power)
+    return w
