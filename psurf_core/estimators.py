@@ -7,7 +7,8 @@ Grammar (the CLI contract):
 * ``mis:A+B+...`` (balance heuristic) / ``mis-power:A+B+...`` (power heuristic, beta = 2);
   a member ``A@0.25`` sweeps only that share of each pass's photons, and the heuristics
   use sample counts (``n_i Q_i``), which keeps the set unbiased;
-* presets (``paper-single``, ``paper-multi``, ``paper-full``) where registered in :data:`PRESETS`;
+* presets (``paper-single``, ``paper-multi``, ``paper-full``, ``fast-single``,
+  ``fast-multi``, ``fast-full``) where registered in :data:`PRESETS`;
 * ``SPEC~A~B``: ``SPEC`` (a preset or an MIS set) without its members ``A`` and ``B`` (what the
   window's member toggles give): every other member keeps what ``SPEC`` gave it (a preset's
   per-light choice, its MIS set), and a set left with one member is that technique alone.
@@ -199,7 +200,7 @@ def _applicable(group, scene: Scene | None, spec: str):
     for t in group:
         if any(t.applies_to(lt) for lt in scene.lights):
             kept.append(t)
-        else:
+        elif not getattr(t, "per_light", False):  # a preset's per-light member: no note
             notes.append(f"MIS member '{t.name}' applies to no light of {scene.path}; dropped")
     if not kept:
         raise SceneError(f"{scene.path}: estimator '{spec}' has no member that applies to "
@@ -224,6 +225,7 @@ def parse_mis(spec: str, scene: Scene | None = None) -> Estimator:
 def _only(tech: Technique, kinds: tuple) -> Technique:
     """Restrict a technique instance to some light kinds (a preset's per-light choice)."""
     tech.lights = tuple(k for k in tech.lights if k in kinds)
+    tech.per_light = True
     return tech
 
 
@@ -236,6 +238,26 @@ def _paper_single():
 def _paper_multi():
     return tuple(get_technique(n) for n in
                  ("plane-t1t2", "plane-t1t3", "plane-t2t3", "cone", "cylinder"))
+
+
+def _fast_single():
+    """Single scattering tuned for equal time (docs/study.md): an area or mesh light's three
+    single-scattering planes with the two swept along the ray short; a point light's sphere,
+    short cone and disk."""
+    point, surface = ("point",), ("area", "mesh")
+    return (*(_only(_check_member(n), surface) for n in ("ss-plane-uv", "ss-plane-ut-short",
+                                                        "ss-plane-vt-short")),
+            _only(get_technique("ss-sphere"), point),
+            _only(get_technique("ss-cone-short"), point),
+            _only(get_technique("ss-disk"), point))
+
+
+def _fast_multi():
+    """Multiple scattering tuned for equal time (docs/study.md): photon planes (short
+    ``plane-t1t2``) on every photon, the short ``plane-t2t3`` on 30 % and the short cone on
+    20 % of them (MIS with sample counts)."""
+    return tuple(_check_member(n) for n in ("planes", "plane-t2t3-short@0.3",
+                                            "cone-short@0.2"))
 
 
 def _preset(groups_fn):
@@ -251,10 +273,15 @@ def _preset(groups_fn):
 
 
 def register_presets() -> None:
-    """Install the paper's presets (all long techniques, balance heuristic)."""
+    """Install the presets: the paper's (``paper-*``: all long techniques, every member on
+    every photon) and the ones tuned for equal time (``fast-*``: short members and sample
+    counts where the study measured them to pay), all with the balance heuristic."""
     PRESETS["paper-single"] = _preset(lambda: [_paper_single()])
     PRESETS["paper-multi"] = _preset(lambda: [_paper_multi()])
     PRESETS["paper-full"] = _preset(lambda: [_paper_single(), _paper_multi()])
+    PRESETS["fast-single"] = _preset(lambda: [_fast_single()])
+    PRESETS["fast-multi"] = _preset(lambda: [_fast_multi()])
+    PRESETS["fast-full"] = _preset(lambda: [_fast_single(), _fast_multi()])
 
 
 register_presets()

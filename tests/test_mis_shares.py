@@ -88,3 +88,18 @@ def test_allocated_set_with_a_numpy_member_is_unbiased():
     full = _sums(scene, "mis-power:planes+cone-short+hyperboloid", 30)
     alloc = _sums(scene, "mis-power:planes@0.5+cone-short+hyperboloid@0.4", 30)
     assert abs(_z(alloc, full)) < 4.0, (alloc.mean(), full.mean())
+
+
+@pytest.mark.parametrize("name,k,fast,paper", [
+    ("study_occluder", (2, 3), "fast-multi", "paper-multi"),
+    ("study_area", (1, 1), "fast-single", "paper-single"),
+    ("point", (1, 1), "fast-single", "paper-single"),
+])
+def test_fast_presets_agree_with_the_papers(name, k, fast, paper):
+    """The presets tuned for equal time (short members, sample counts, per-light members)
+    estimate what the paper's presets do: pooled image sums within 4 standard errors."""
+    scene = load_scene(SCENES / f"{name}.toml")
+    scene = replace(scene, min_scatter=k[0], max_scatter=k[1],
+                    camera=replace(scene.camera, width=16, height=12))
+    a, b = _sums(scene, fast, 30, 800), _sums(scene, paper, 30, 400)
+    assert abs(_z(a, b)) < 4.0, (a.mean(), b.mean())

@@ -155,7 +155,7 @@ MIS_SPECS = ["paper-multi", "mis-power:plane-t1t2-short+cone-short+cylinder+plan
              "paper-multi~plane-t1t2~cylinder", "mis:planes+cone-short@0.3+cylinder@0.5",
              "mis-power:planes@0.6+cone@0.2", "paper-single", "paper-single~ss-sphere",
              "mis-power:ss-plane-uv+ss-plane-ut-short+ss-plane-vt+ss-cone-short+ss-disk"
-             "+ss-sphere"]
+             "+ss-sphere", "fast-single", "fast-multi"]
 
 
 @pytest.mark.parametrize("spec", MIS_SPECS)
