@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import math
 import os
+import re
 import signal
 import sys
 
@@ -29,11 +31,54 @@ class CliError(Exception):
     """A bad command line or input: printed as one ``psurf: error:`` line, exit code 2."""
 
 
+def did_you_mean(word: str, choices) -> str:
+    """``"; did you mean 'X'?"`` for the closest of ``choices`` to ``word`` ("" when none is
+    close)."""
+    close = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
 class Parser(argparse.ArgumentParser):
-    """``ArgumentParser`` whose errors are :class:`CliError` (one line, exit 2, no usage)."""
+    """``ArgumentParser`` whose errors are :class:`CliError` (one line, exit 2, no usage),
+    with a "did you mean" for a mistyped subcommand, choice or flag."""
+
+    def option_strings(self) -> set:
+        """Every flag of this parser and of its subcommands."""
+        out = set(self._option_string_actions)
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub in action.choices.values():
+                    out |= (sub.option_strings() if isinstance(sub, Parser)
+                            else set(sub._option_string_actions))
+        return out
 
     def error(self, message: str):  # noqa: D102 - argparse hook
+        m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if m:
+            choices = re.findall(r"'([^']*)'", m.group(2))
+            message += did_you_mean(m.group(1), choices)
+        m = re.match(r"unrecognized arguments: (\S+)", message)
+        if m and m.group(1).startswith("-"):
+            message += did_you_mean(m.group(1).split("=")[0], sorted(self.option_strings()))
         raise CliError(message)
+
+
+def join_negative_values(argv: list) -> list:
+    """``--pixel -1,5`` -> ``--pixel=-1,5``: a flag value that starts with ``-`` and a digit
+    is glued to its flag, so argparse checks the value (one clear line) instead of taking it
+    for an option ("expected one argument")."""
+    out, i = [], 0
+    argv = list(argv)
+    while i < len(argv):
+        tok = argv[i]
+        if (tok.startswith("--") and "=" not in tok and i + 1 < len(argv)
+                and re.match(r"^-\d", argv[i + 1])):
+            out.append(f"{tok}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
 
 
 def fail(message: str) -> int:
@@ -132,6 +177,11 @@ def window_size(text: str) -> tuple[int, int]:
     return pair(text, "W,H (two integers >= 64)", 64)
 
 
+def resolution(text: str) -> tuple[int, int]:
+    """Flag type: an image resolution ``W,H`` in pixels (each >= 8), overriding the scene's."""
+    return pair(text, "W,H (two integers >= 8: the image's width and height in pixels)", 8)
+
+
 # --------------------------------------------------------------------------- checks
 
 
@@ -156,7 +206,46 @@ def load_scene(path: str):
     return _load(path)
 
 
-def parse_estimator_flag(spec: str, scene):
+def with_resolution(scene, size):
+    """``scene`` rendered at ``size = (W, H)`` pixels instead of its own (None: unchanged)."""
+    if size is None:
+        return scene
+    from dataclasses import replace
+
+    w, h = (int(v) for v in size)
+    return replace(scene, camera=replace(scene.camera, width=w, height=h))
+
+
+def estimator_names() -> list[str]:
+    """Every estimator name the parser knows (techniques, ``-short`` twins, presets)."""
+    from psurf_core.estimators import PRESETS
+    from psurf_core.techniques import REGISTRY
+
+    names = ["reference", *REGISTRY, *PRESETS]
+    names += [f"{n}-short" for n, e in REGISTRY.items() if e.has_short]
+    return names
+
+
+def explain_estimator_error(error: Exception) -> str:
+    """The message of an estimator parse error, with a "did you mean" for a mistyped name
+    (``unknown estimator 'paper-mutli'; did you mean 'paper-multi'?``)."""
+    text = str(error)
+    m = re.search(r"unknown estimator '([^']*)'", text)
+    if m:
+        return text + did_you_mean(m.group(1), estimator_names())
+    m = re.search(r"'([^']*)' is not a member of '([^']*)'", text)
+    if m:
+        from psurf_core.estimators import parse_estimator
+
+        try:
+            members = [t.name for t in parse_estimator(m.group(2)).techniques]
+        except Exception:
+            members = []
+        return text + did_you_mean(m.group(1), members)
+    return text
+
+
+def parse_estimator_flag(spec: str, scene, flag: str = "--estimator"):
     """Parse ``--estimator`` (unknown names and inapplicable techniques become CliError)."""
     from psurf_core import SceneError, parse_estimator
     from psurf_core.techniques import UnknownTechnique
@@ -166,11 +255,35 @@ def parse_estimator_flag(spec: str, scene):
     except SceneError:
         raise
     except UnknownTechnique as e:
-        raise CliError(f"--estimator: {e} (see 'python app.py --help')") from None
+        raise CliError(f"{flag}: {explain_estimator_error(e)} (see 'python app.py --help')") \
+            from None
     except ModuleNotFoundError as e:
         raise CliError(f"--estimator {spec!r}: not available in this build ({e})") from None
     except ValueError as e:  # e.g. a malformed mis: spec
-        raise CliError(f"--estimator {spec!r}: {e}") from None
+        raise CliError(f"{flag} {spec!r}: {e}") from None
+
+
+def load_reference(path: str, scene):
+    """``psurf_core.study.load_reference`` with a clear line for a file that is no .npz
+    render at all (a scene file given by mistake) instead of numpy's message.
+
+    Raises
+    ------
+    SceneError
+        Naming the file and what is wrong with it.
+    """
+    import zipfile
+
+    from psurf_core import SceneError
+    from psurf_core.study import load_reference as _load
+
+    path = os.fspath(path)
+    if os.path.isfile(path) and not zipfile.is_zipfile(path):
+        kind = "a TOML scene file" if path.lower().endswith(".toml") else "not an .npz archive"
+        raise SceneError(f"--reference {path}: {kind}, not a rendered image; make one with "
+                         f"'python app.py render SCENE.toml --estimator reference --out "
+                         f"ref.npz'")
+    return _load(path, scene)
 
 
 def with_scatter(scene, lo: int | None, hi: int | None):

@@ -22,12 +22,16 @@ import textwrap
 from .common import (
     PROG,
     CliError,
+    explain_estimator_error,
     fail,
+    load_reference,
     nonneg_int,
     positive_float,
     positive_int,
+    resolution,
     scatter_int,
     shrink,
+    with_resolution,
     with_scatter,
 )
 from .parallel import add_dask_flags
@@ -119,6 +123,8 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                         "estimator in --estimators order; 'auto' (the default) times a pass "
                         "of each estimator and sizes its passes so that the budget holds "
                         "about 48 of them")
+    p.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
+                   help="render at W x H pixels instead of the scene's resolution")
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
     p.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
@@ -155,7 +161,8 @@ def _parse(spec: str, scene):
     except SceneError as e:
         raise _Bad(str(e)) from None
     except UnknownTechnique as e:
-        raise _Bad(f"--estimators: {e} (see 'python app.py --help')") from None
+        raise _Bad(f"--estimators: {explain_estimator_error(e)} (see 'python app.py --help')") \
+            from None
     except ModuleNotFoundError as e:
         raise _Bad(f"--estimators {spec!r}: not available in this build ({e})") from None
     except ValueError as e:
@@ -247,7 +254,7 @@ def run_compare(args) -> int:
     try:
         _check_out(args.out)
         try:
-            scene = load_scene(args.scene)
+            scene = with_resolution(load_scene(args.scene), args.resolution)
         except SceneError as e:
             raise _Bad(str(e)) from None
         scene = with_scatter(scene, args.min_scatter, args.max_scatter)
@@ -255,7 +262,7 @@ def run_compare(args) -> int:
         reference = None
         if args.reference is not None:
             try:
-                reference = st.load_reference(args.reference, scene)
+                reference = load_reference(args.reference, scene)
             except SceneError as e:
                 raise _Bad(str(e)) from None
         settings = _settings(args)

@@ -56,9 +56,11 @@ from .common import (
     positive_float,
     positive_int,
     progress,
+    resolution,
     scatter_int,
     shrink,
     sigint_deferred,
+    with_resolution,
     with_scatter,
     write_all,
 )
@@ -111,6 +113,8 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
                    help="estimator name (list below)")
     r.add_argument("--photons", type=positive_int, default=DEFAULT_PHOTONS, metavar="N",
                    help=f"photons per pass (default {DEFAULT_PHOTONS}; the reference ignores it)")
+    r.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
+                   help="render at W x H pixels instead of the scene's [camera] resolution")
     r.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
     budget = r.add_mutually_exclusive_group()
@@ -218,7 +222,7 @@ def cmd_render(args) -> int:
             raise CliError(f"--resume {args.resume}: no such directory")
         checkpoint_dir_ok("--resume", args.resume, must_be_empty=False)
 
-    scene = load_scene(args.scene)
+    scene = with_resolution(load_scene(args.scene), args.resolution)
     scene = with_scatter(scene, args.min_scatter, args.max_scatter)
     est = parse_estimator_flag(args.estimator, scene)
 

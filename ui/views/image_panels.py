@@ -8,18 +8,29 @@ spanning ``[X, X+1] x [H-Y-1, H-Y]``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from psurf_core import images as im
-from psurf_core.accumulate import Welford
 
 from . import scene_view
 from ._vtk import pv, vtkTextActor
-from .scene_view import FONT_SMALL, HIGHLIGHT, OKABE_ITO, add_text, pt, px
+from .panel_modes import (  # noqa: F401 - the modes' names are part of this module's API
+    MEAN_VARIANCE_BAR,
+    MODE_HELP,
+    MODES,
+    VARIANCE_CMAP,
+    WEIGHT_BAR,
+    WEIGHT_CMAP,
+    Area,
+    Entry,
+    Tile,
+    VarScale,
+    entries_of,
+    mode_areas,
+    next_mode,
+)
+from .scene_view import FONT_SMALL, HIGHLIGHT, OKABE_ITO, add_text, fit_font, pt, px
 
-VARIANCE_CMAP = "viridis"
 VARIANCE_BAR = "variance (log)"
 
 
@@ -85,11 +96,13 @@ def variance_values(var: np.ndarray) -> np.ndarray:
     return v.mean(axis=-1) if v.ndim == 3 else v
 
 
-def add_variance_panel(plotter: pv.Plotter, var: np.ndarray, pixel_xy, title: str) -> None:
-    """Per-pass variance in false colour (log scale) with a colour bar."""
+def add_variance_panel(plotter: pv.Plotter, var: np.ndarray, pixel_xy, title: str,
+                       clim: tuple | None = None) -> None:
+    """Per-pass variance in false colour (log scale) with a colour bar; ``clim`` pins the
+    range (lecture states that compare estimators share one), default the map's own."""
     v = variance_values(var)
     h, w = v.shape
-    lo, hi = im.log_range(v)
+    lo, hi = im.log_range(v) if clim is None else (float(clim[0]), float(clim[1]))
     shown = np.clip(np.where(np.isfinite(v), v, lo), lo, hi)
     bar = dict(title=VARIANCE_BAR, title_font_size=1, label_font_size=pt(FONT_SMALL),
                n_labels=3, fmt="%.0e", color="black", vertical=False,
@@ -108,198 +121,15 @@ def add_variance_panel(plotter: pv.Plotter, var: np.ndarray, pixel_xy, title: st
 
 # =========================================================================== panel modes
 # The window hands a list of subplots (e.g. its render and variance cells) to
-# :class:`PanelView`, which tiles a mode's images into them. Actors are built once per layout
-# and then updated in place (new cell values, ranges, texts), so a progressive frame costs a
-# few milliseconds, not a rebuild.
-
-#: Panel modes, in the order the window's ``m`` key cycles them.
-MODES = ("render", "techniques", "bounces")
-MODE_HELP = {
-    "render": "each estimator's render and variance, side by side at equal time",
-    "techniques": "MIS: each technique's weighted contribution and its weight map",
-    "bounces": "per scatter count K; each technique unweighted vs weighted at one K",
-}
-#: Colour-blind-safe maps: viridis for variance, cividis for weights (linear, [0, 1]).
-WEIGHT_CMAP = "cividis"
-MEAN_VARIANCE_BAR = "variance of the mean (log)"
-WEIGHT_BAR = "share of the pixel (mean MIS weight)"
+# :class:`PanelView`, which tiles a mode's images (``ui.views.panel_modes.mode_areas``) into
+# them. Actors are built once per layout and then updated in place (new cell values, ranges,
+# texts), so a progressive frame costs a few milliseconds, not a rebuild.
 
 
-def next_mode(mode: str) -> str:
-    """The mode after ``mode`` (the window's ``m`` key)."""
-    return MODES[(MODES.index(mode) + 1) % len(MODES)] if mode in MODES else MODES[0]
-
-
-@dataclass
-class Entry:
-    """One estimator as the panels see it (``label``, ``acc``, ``seconds``, ``breakdown``)."""
-
-    label: str
-    acc: Welford
-    seconds: float = 0.0
-    breakdown: object = None
-
-
-def entries_of(source) -> list:
-    """Normalise a panel source: a ``Progressive``, a list of its runs, a ``{label: Welford}``
-    dict or one ``Welford``."""
-    if isinstance(source, Welford):
-        return [Entry("render", source)]
-    if isinstance(source, dict):
-        return [Entry(str(k), v) for k, v in source.items()]
-    runs = getattr(source, "runs", source)
-    return [r if isinstance(r, Entry) else
-            Entry(getattr(r, "label", getattr(r, "spec", "?")), r.acc,
-                  float(getattr(r, "seconds", 0.0)), getattr(r, "breakdown", None))
-            for r in runs]
-
-
-@dataclass
-class Tile:
-    """One image of a panel: ``rgb`` (H, W, 3) uint8, or ``values`` (H, W) float drawn in
-    false colour with range ``clim`` (log scale when ``log``)."""
-
-    title: str
-    rgb: np.ndarray | None = None
-    values: np.ndarray | None = None
-    clim: tuple = (1e-3, 1.0)
-    log: bool = True
-    cmap: str = VARIANCE_CMAP
-    pixel: bool = False  # outline the picked pixel
-
-
-@dataclass
-class Area:
-    """What one subplot shows: a header line, tiles on a grid, an optional colour bar."""
-
-    header: str
-    tiles: list
-    rows: int | None = None  # None: the grid that makes tiles largest
-    bar: str | None = None  # colour-bar title (for the false-colour tiles)
-
-
-def _fmt_ratio(r) -> str:
-    return "Var: n/a" if r is None else f"Var: {r:.2g}\u00d7"
-
-
-def _k_of(layout, k) -> int:
-    return layout.k_min + 1 if k is None and layout.n_k > 1 and layout.k_min < 2 else (
-        layout.k_min if k is None else int(k))
-
-
-def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
-               estimator: int | None = None, technique=None, k: int | None = None) -> list:
-    """The two areas (images, then maps) of ``mode`` for ``source``.
-
-    Parameters
-    ----------
-    mode : {'render', 'techniques', 'bounces'}
-    reference : (H, W, 3) ndarray, optional
-        Ground truth: relMSE is shown per estimator in ``render`` mode.
-    estimator : int, optional
-        Which estimator the ``techniques``/``bounces`` modes break down (default: the first
-        with a breakdown).
-    technique : str or int, optional
-        ``bounces``: show this technique's images per K (unweighted vs weighted) instead of
-        every technique at one K.
-    k : int, optional
-        ``bounces``: the scatter count compared across techniques (default 2 when the
-        breakdown has it, else its first K).
-
-    Returns
-    -------
-    list of Area
-        Two areas; a mode without data (no breakdown) gives areas with one message tile.
-    """
-    from ui.cli.progressive import compare_rows
-
-    ents = entries_of(source)
-    if mode not in MODES:
-        raise ValueError(f"unknown panel mode {mode!r} (one of {', '.join(MODES)})")
-    if mode == "render":
-        rows = compare_rows(ents, reference)
-        means = [e.acc.mean for e in ents]
-        exposure = min(im.auto_exposure(m) for m in means)
-        var_means = [variance_values(e.acc.variance) / max(e.acc.n, 1) for e in ents]
-        lo, hi = im.log_range(np.concatenate([v.ravel() for v in var_means]))
-        tiles_a, tiles_b = [], []
-        for e, row, v in zip(ents, rows, var_means, strict=True):
-            took = f", {e.seconds:.1f} s" if e.seconds > 0 else ""
-            tiles_a.append(Tile(f"{e.label}\n{e.acc.n} passes{took}",
-                                rgb=im.tone_map(e.acc.mean, exposure), pixel=True))
-            title = _fmt_ratio(row["ratio"]) if len(ents) > 1 else e.label
-            if row["relmse"] is not None:
-                title += f"  relMSE {row['relmse']:.2g}"
-            tiles_b.append(Tile(title, values=v, clim=(lo, hi), pixel=True))
-        head = "renders, one exposure" if len(ents) > 1 else "progressive render"
-        return [Area(head, tiles_a, rows=1 if len(ents) <= 3 else None),
-                Area(f"Var at equal {rows[0]['equal']}" if len(ents) > 1
-                     else "variance of the mean",
-                     tiles_b, rows=1 if len(ents) <= 3 else None, bar=MEAN_VARIANCE_BAR)]
-    pick = [i for i, e in enumerate(ents) if e.breakdown is not None]
-    # By default the first MIS set (the pictures are about MIS), or the first estimator that
-    # has ``technique``.
-    pick.sort(key=lambda i: len(ents[i].breakdown.layout.techniques) < 2)
-    if technique is not None and isinstance(technique, str):
-        pick = [i for i in pick if technique in ents[i].breakdown.layout.techniques] or pick
-    if estimator is not None:
-        pick = [int(estimator)] if ents[int(estimator)].breakdown is not None else []
-    if not pick or ents[pick[0]].breakdown.n == 0:
-        msg = ("no breakdown: start the render with breakdown=True" if not pick
-               else "waiting for the first pass")
-        blank = Tile(msg, rgb=np.full((*ents[0].acc.mean.shape[:2], 3), 255, np.uint8))
-        return [Area(MODE_HELP[mode], [blank]), Area("", [])]
-    e = ents[pick[0]]
-    b = e.breakdown
-    lay = b.layout
-    names = lay.techniques
-    total = b.image
-    exposure = im.auto_exposure(total)
-    if mode == "techniques":
-        imgs = b.technique_images()
-        w = b.technique_weights()
-        tiles_a = [Tile("sum (the image)", rgb=im.tone_map(total, exposure))]
-        tiles_a += [Tile(f"{n}", rgb=im.tone_map(x, exposure)) for n, x in zip(names, imgs,
-                                                                                strict=True)]
-        tiles_b = [Tile(n, values=x, clim=(0.0, 1.0), log=False, cmap=WEIGHT_CMAP)
-                   for n, x in zip(names, w, strict=True)]
-        return [Area(f"weighted contributions, {b.n} passes",
-                     tiles_a),
-                Area("weight maps: share of each pixel", tiles_b,
-                     bar=WEIGHT_BAR)]
-    # bounces
-    kimg = b.k_images()
-    tiles_a = [Tile(lbl, rgb=im.tone_map(x, exposure)) for lbl, x in zip(lay.labels, kimg,
-                                                                         strict=True)]
-    area_a = Area(f"per scatter count K, {b.n} passes", tiles_a)
-    if technique is not None:
-        t = b.index(technique)
-        un = b.unweighted.mean[t]
-        we = b.weighted.mean[t]
-        ex = im.auto_exposure(un)
-        tiles_b = ([Tile(f"{lbl} unweighted", rgb=im.tone_map(x, ex))
-                    for lbl, x in zip(lay.labels, un, strict=True)]
-                   + [Tile(f"{lbl} weighted", rgb=im.tone_map(x, ex))
-                      for lbl, x in zip(lay.labels, we, strict=True)])
-        return [area_a, Area(f"{names[t]}: unweighted / weighted", tiles_b,
-                             rows=2)]
-    kk = _k_of(lay, k)
-    kb = lay.k_bin(kk)
-    ex = im.auto_exposure(kimg[kb])  # every unweighted image estimates this bin
-    # Techniques that cannot produce this K (plane-t1t3 at K = 2) would be black tiles.
-    ts = [t for t in range(len(names)) if b.unweighted.mean[t, kb].any()] or \
-        list(range(len(names)))
-    tiles_b = ([Tile(f"{names[t]} unweighted", rgb=im.tone_map(b.unweighted.mean[t, kb], ex))
-                for t in ts]
-               + [Tile(f"{names[t]} weighted", rgb=im.tone_map(b.weighted.mean[t, kb], ex))
-                  for t in ts])
-    return [area_a, Area(f"{lay.labels[kb]}: unweighted / weighted", tiles_b,
-                         rows=2)]
-
-
-def _label(plotter, text: str, x: float, y: float, size: float, *, name: str,
+def _label(plotter, text: str, x: float, y: float, size_px: int, *, name: str,
            align: str = "center", bold: bool = False):
-    """A text whose top ``align`` point is at the normalised viewport position ``(x, y)``.
+    """A text whose top ``align`` point is at the normalised viewport position ``(x, y)``,
+    ``size_px`` pixels (already scaled).
 
     A plain ``vtkTextActor`` (not ``plotter.add_text``): after a panel was rebuilt with
     another layout, pyvista's text actors sometimes came back at twice their font size.
@@ -311,7 +141,7 @@ def _label(plotter, text: str, x: float, y: float, size: float, *, name: str,
     coord.SetCoordinateSystemToNormalizedViewport()
     coord.SetValue(x, y)
     prop = actor.GetTextProperty()
-    prop.SetFontSize(pt(size))
+    prop.SetFontSize(int(size_px))
     prop.SetFontFamilyToArial()
     prop.SetColor(*pv.Color(scene_view.TEXT_COLOUR).float_rgb)
     prop.SetBold(bold)
@@ -329,11 +159,42 @@ def _outline_points(pixel_xy, height: int, s: float, x0: float, y0: float) -> np
     return pts * [s, s, 1.0] + [x0, y0, 0.0]
 
 
-def _fit(text: str, width_px: float) -> str:
-    """Shorten every line of ``text`` to about ``width_px`` pixels at the tile font."""
-    n = max(4, int(width_px / (0.55 * pt(FONT_SMALL))))
-    return "\n".join(line if len(line) <= n else line[: n - 1] + "\u2026"
-                     for line in text.split("\n"))
+#: Titles are never cut: they shrink down to this share of the tile font, then wrap.
+MIN_TITLE_SHARE = 0.72
+
+
+def _wrap_spec(line: str) -> list[str]:
+    """``line`` in two at the joint nearest its middle: before a spec's ``~`` or ``+``, or
+    at a space (a line without joints stays whole)."""
+    cuts = [i for i, ch in enumerate(line) if ch in "~+" and i > 0]
+    cuts += [i + 1 for i, ch in enumerate(line) if ch == " " and 0 < i < len(line) - 1]
+    if not cuts:
+        return [line]
+    i = min(cuts, key=lambda c: abs(c - len(line) / 2))
+    return [line[:i].rstrip(), line[i:].lstrip()]
+
+
+def fit_title(text: str, width_px: float, size_px: int, *, bold: bool = False) -> tuple:
+    """``(text, size)``: ``text`` at the largest size ``<= size_px`` that fits ``width_px``
+    per line; lines that would need less than :data:`MIN_TITLE_SHARE` of the size are
+    wrapped (at spec joints, then spaces) instead. Nothing is ever cut."""
+    lines = text.split("\n")
+    floor = max(7, int(MIN_TITLE_SHARE * size_px))
+    out = []
+    for line in lines:
+        todo = [line]
+        while todo:
+            cur = todo.pop(0)
+            size = fit_font(cur, size_px, (width_px, 10 * size_px), bold=bold)
+            if size < floor:
+                parts = _wrap_spec(cur)
+                if len(parts) > 1 and all(parts):
+                    todo[:0] = parts
+                    continue
+            out.append(cur)
+    joined = "\n".join(out)
+    return joined, fit_font(joined, size_px, (width_px, 100 * size_px), bold=bold,
+                            minimum=min(floor, 7))
 
 
 def _grid_shape(n: int, w: int, h: int, vw: float, vh: float, label_px: float,
@@ -362,8 +223,9 @@ class PanelView:
 
     def draw(self, plotter: pv.Plotter, subplots, source, mode: str = "render",
              pixel_xy=None, *, reference=None, estimator=None, technique=None,
-             k=None) -> None:
-        """Draw ``mode`` (see :func:`mode_areas`) of ``source`` into ``subplots``.
+             k=None, clim=None, scale=None, inspected=None) -> None:
+        """Draw ``mode`` (see :func:`ui.views.panel_modes.mode_areas`) of ``source`` into
+        ``subplots``.
 
         Parameters
         ----------
@@ -373,9 +235,13 @@ class PanelView:
         source : Progressive, list of runs, dict of Welford, or Welford
         pixel_xy : (int, int), optional
             Picked pixel, outlined on the render and variance tiles.
+        clim, scale, inspected
+            The variance maps' range or shared :class:`VarScale`, and the inspected
+            estimator (framed); see ``mode_areas``.
         """
         areas = mode_areas(source, mode, reference=reference, estimator=estimator,
-                           technique=technique, k=k)
+                           technique=technique, k=k, clim=clim, scale=scale,
+                           inspected=inspected)
         # Once a window has been shown pyvista renders after every added actor; a rebuild adds
         # dozens (seconds in software OpenGL), so rendering is held: the caller renders once.
         held = plotter.suppress_rendering
@@ -388,30 +254,57 @@ class PanelView:
             plotter.suppress_rendering = held
 
     # ------------------------------------------------------------------ one area
+    def _fitted(self, area: Area, vw: float, vh: float, top_px: float, bottom_px: float,
+                hw) -> tuple:
+        """Grid, scale and fitted tile titles of ``area`` in a ``vw x vh`` viewport."""
+        h, w = hw
+        size = pt(FONT_SMALL)
+        line_px = 1.3 * size
+        n = max(len(area.tiles), 1)
+        titles = [t.title for t in area.tiles]
+        lines = max((t.count("\n") + 1 for t in titles), default=1)
+        for _ in range(2):  # fitting may wrap titles onto more lines: lay out again once
+            label_px = lines * line_px + 6
+            rows, cols, s = _grid_shape(n, w, h, vw, vh - top_px - bottom_px, label_px,
+                                        area.rows)
+            s = max(s, 1e-3)
+            room = max(w * s * 1.04, 40.0)
+            fitted = [fit_title(t, room, size, bold=tile.frame)
+                      for t, tile in zip(titles, area.tiles, strict=True)]
+            need = max((t.count("\n") + 1 for t, _ in fitted), default=1)
+            if need <= lines:
+                break
+            lines = need
+        return rows, cols, s, label_px, fitted
+
     def _draw_area(self, plotter, tag, area: Area, pixel_xy) -> None:
         ren = plotter.renderer
         vx0, vy0, vx1, vy1 = ren.GetViewport()
         ww, wh = plotter.window_size
         vw, vh = (vx1 - vx0) * ww, (vy1 - vy0) * wh
-        lines = max((t.title.count("\n") + 1 for t in area.tiles), default=1)
-        line_px = 1.35 * pt(FONT_SMALL)
-        label_px = lines * line_px + 4
-        top_px = line_px + 10  # the header
-        bottom_px = (0.16 * vh) if area.bar else 6.0
+        size = pt(FONT_SMALL)
+        header, header_size = fit_title(area.header, 0.98 * vw, size, bold=True)
+        top_px = (header.count("\n") + 1) * 1.3 * header_size + 10
+        bottom_px = max(0.14 * vh, 3.2 * size) if area.bar else 6.0
         h, w = area.tiles[0].values.shape if area.tiles and area.tiles[0].values is not None \
             else (area.tiles[0].rgb.shape[:2] if area.tiles else (1, 1))
-        key = (tag, id(ren), tuple((t.rgb is None, t.cmap, t.log, t.pixel) for t in area.tiles),
-               area.rows, area.bar, round(vw), round(vh), (h, w), lines, pixel_xy is None)
+        rows, cols, s, label_px, fitted = self._fitted(area, vw, vh, top_px, bottom_px, (h, w))
+        key = (tag, id(ren), tuple((t.rgb is None, t.cmap, t.log, t.pixel, t.frame)
+                                   for t in area.tiles),
+               area.rows, area.bar, round(vw), round(vh), (h, w), round(label_px),
+               round(top_px), pixel_xy is None)
         parts = self._parts.get(tag)
         if self._key.get(tag) != key or parts is None or not self._alive(plotter, ren, parts):
             parts = self._build(plotter, tag, area, vw, vh, top_px, bottom_px, label_px,
-                                (h, w), pixel_xy)
+                                (rows, cols, s), (h, w), pixel_xy)
             self._key[tag], self._parts[tag] = key, parts
         # in-place update: values, ranges, texts
-        parts["header"].SetInput(_fit(area.header, 0.98 * vw))
-        for tile, (grid, actor, text), room in zip(area.tiles, parts["tiles"], parts["fits"],
-                                                   strict=True):
-            text.SetInput(_fit(tile.title, room))
+        parts["header"].SetInput(header)
+        parts["header"].GetTextProperty().SetFontSize(header_size)
+        for tile, (grid, actor, text), (title, tsize) in zip(area.tiles, parts["tiles"], fitted,
+                                                             strict=True):
+            text.SetInput(title)
+            text.GetTextProperty().SetFontSize(tsize)
             arr = grid.cell_data["rgb" if tile.rgb is not None else "values"]
             if tile.rgb is not None:
                 arr[:] = tile.rgb[::-1].reshape(h * w, 3)
@@ -422,6 +315,9 @@ class PanelView:
                 actor.mapper.SetScalarRange(lo, hi)
                 actor.mapper.lookup_table.SetRange(lo, hi)
             grid.Modified()
+        if parts["bar"] is not None and area.bar is not None:
+            bar = plotter.scalar_bars[parts["bar"]]
+            bar.SetTitle(area.bar)
         if pixel_xy is not None:  # a moved pixel moves the outlines (no rebuild)
             for mesh, (x0, y0, sc) in parts["outlines"]:
                 mesh.points = _outline_points(pixel_xy, h, sc, x0, y0)
@@ -432,8 +328,8 @@ class PanelView:
         bar_ok = parts["bar"] is None or parts["bar"] in plotter.scalar_bars
         return bar_ok and all(name in ren.actors for name in parts["names"])
 
-    def _build(self, plotter, tag, area: Area, vw, vh, top_px, bottom_px, label_px, hw,
-               pixel_xy) -> dict:
+    def _build(self, plotter, tag, area: Area, vw, vh, top_px, bottom_px, label_px, grid_rcs,
+               hw, pixel_xy) -> dict:
         ren = plotter.renderer
         old = self._parts.get(tag)
         # Only this area's own bar: bars are keyed by title across the whole plotter.
@@ -442,19 +338,20 @@ class PanelView:
         ren.clear_actors()
         ren.set_background("white")
         h, w = hw
-        n = len(area.tiles)
-        usable_h = vh - top_px - bottom_px
-        rows, cols, s = _grid_shape(max(n, 1), w, h, vw, usable_h, label_px, area.rows)
-        s = max(s, 1e-3)
-        names, fits, outlines = [], [], []
-        header = _label(plotter, _fit(area.header, 0.98 * vw), 0.5, 1.0 - 4 / vh, FONT_SMALL,
-                          name=f"{tag}-header", align="center", bold=True)
+        rows, cols, s = grid_rcs
+        names, outlines = [], []
+        header = _label(plotter, area.header, 0.5, 1.0 - 4 / vh, pt(FONT_SMALL),
+                        name=f"{tag}-header", align="center", bold=True)
         names.append(f"{tag}-header")
         tiles = []
         gap_x = 0.06 * w * s
         row_h = h * s * 1.04 + label_px
         x_start = (vw - cols * w * s - (cols - 1) * gap_x) / 2
+        # the grid centred between the header and the colour bar
+        spare = max(vh - top_px - bottom_px - rows * row_h, 0.0)
+        top_px = top_px + 0.5 * spare
         bar_done = False
+        bar_key = f"{area.bar}#{tag}" if area.bar else None  # bars are keyed by title
         for i, tile in enumerate(area.tiles):
             r, c = divmod(i, cols)
             px0 = x_start + c * (w * s + gap_x)
@@ -472,7 +369,7 @@ class PanelView:
                 grid.cell_data["values"] = np.clip(
                     np.where(np.isfinite(tile.values), tile.values, lo), lo, hi)[::-1].ravel()
                 show_bar = area.bar is not None and not bar_done
-                bar = dict(title=area.bar, title_font_size=pt(FONT_SMALL),
+                bar = dict(title=bar_key, title_font_size=pt(FONT_SMALL),
                            label_font_size=pt(FONT_SMALL), n_labels=3,
                            fmt="%.0e" if tile.log else "%.1f", color="black", vertical=False,
                            position_x=0.1, position_y=0.02,
@@ -481,13 +378,23 @@ class PanelView:
                                          log_scale=tile.log, clim=(lo, hi), lighting=False,
                                          show_scalar_bar=show_bar, scalar_bar_args=bar,
                                          name=name, reset_camera=False)
+                if show_bar:
+                    plotter.scalar_bars[bar_key].SetTitle(area.bar)
                 bar_done = bar_done or show_bar
             names.append(name)
-            text = _label(plotter, _fit(tile.title, w * s * 1.05), (px0 + w * s / 2) / vw,
-                            py_top / vh,
-                            FONT_SMALL, name=f"{name}-title", align="center")
-            fits.append(w * s * 1.05)
+            text = _label(plotter, tile.title, (px0 + w * s / 2) / vw, py_top / vh,
+                          pt(FONT_SMALL), name=f"{name}-title", align="center",
+                          bold=tile.frame)
             names.append(f"{name}-title")
+            if tile.frame:  # the inspected estimator: a frame around its tile
+                g = max(px(3), 3.0)
+                corners = np.array([[px0 - g, py0 - g, 0.04], [px0 + w * s + g, py0 - g, 0.04],
+                                    [px0 + w * s + g, py0 + h * s + g, 0.04],
+                                    [px0 - g, py0 + h * s + g, 0.04]])
+                plotter.add_mesh(pv.PolyData(corners, lines=np.array([5, 0, 1, 2, 3, 0])),
+                                 color=HIGHLIGHT, line_width=px(4), name=f"{name}-frame",
+                                 reset_camera=False)
+                names.append(f"{name}-frame")
             if tile.pixel and pixel_xy is not None:
                 outline = pixel_outline(pixel_xy, h, 0.6)
                 outline.points = _outline_points(pixel_xy, h, s, px0, py0)
@@ -511,9 +418,8 @@ class PanelView:
             cam.up = (0.0, 1.0, 0.0)
             cam.parallel_scale = view[2]
         ren.ResetCameraClippingRange()
-        return {"header": header, "tiles": tiles, "names": names, "fits": fits,
-                "outlines": outlines,
-                "bar": area.bar if bar_done else None}
+        return {"header": header, "tiles": tiles, "names": names, "outlines": outlines,
+                "bar": bar_key if bar_done else None}
 
 
 def draw_image_panels(plotter: pv.Plotter, subplots, source, mode: str = "render",
@@ -526,25 +432,37 @@ def draw_image_panels(plotter: pv.Plotter, subplots, source, mode: str = "render
 
 
 class FigureMaker:
-    """Off-screen figures of the panels (recording, the ``breakdown`` command): one plotter
-    with the two areas one above the other, reused frame after frame."""
+    """Off-screen figures of the panels (recording, the ``breakdown`` command, the demo's
+    comparison): one plotter with the two areas one above the other (and, with ``title``, a
+    title line above them), reused frame after frame."""
 
-    def __init__(self, size=(1200, 900)):
+    def __init__(self, size=(1200, 900), *, title: bool = False):
         scene_view.plain_text()
         self.size = (int(size[0]), int(size[1]))
-        self.plotter = pv.Plotter(window_size=list(self.size), off_screen=True, shape=(2, 1),
-                                  border=False)
+        self.titled = bool(title)
+        shape = dict(shape=(3, 1), row_weights=[0.07, 0.44, 0.49]) if title else \
+            dict(shape=(2, 1))
+        self.plotter = pv.Plotter(window_size=list(self.size), off_screen=True, border=False,
+                                  **shape)
         self.plotter.set_background("white", all_renderers=True)
         # Pixel-aligned image tiles need no multisampling, and software OpenGL (llvmpipe, no
         # display) spends most of a frame on it: 4x MSAA costs ~0.25 s at 1200 x 900.
         self.plotter.ren_win.SetMultiSamples(0)
         self.view = PanelView()
 
-    def frame(self, source, mode: str = "render", pixel_xy=None, **kw) -> np.ndarray:
-        """(H, W, 3) uint8 picture of ``mode`` for ``source``."""
+    def frame(self, source, mode: str = "render", pixel_xy=None, *, title: str = "",
+              **kw) -> np.ndarray:
+        """(H, W, 3) uint8 picture of ``mode`` for ``source`` (``title``: the title line)."""
         # Fonts as in the window (18 pt at the design size) for a 960 x 720 figure.
         scene_view.set_scale(self.size[1] * scene_view.DESIGN_HEIGHT / 720.0)
-        self.view.draw(self.plotter, [(0, 0), (1, 0)], source, mode, pixel_xy, **kw)
+        cells = [(1, 0), (2, 0)] if self.titled else [(0, 0), (1, 0)]
+        if self.titled:
+            self.plotter.subplot(0, 0)
+            self.plotter.renderer.clear_actors()
+            size = fit_font(title, pt(FONT_SMALL), (0.97 * self.size[0], 0.07 * self.size[1]))
+            add_text(self.plotter, title, 0.5, 0.9, FONT_SMALL, size_px=size, align="center",
+                     name="figure-title")
+        self.view.draw(self.plotter, cells, source, mode, pixel_xy, **kw)
         self.plotter.render()  # screenshot() alone may return the last rendered image
         # a copy: the screenshot buffer may be reused by the next frame
         return np.array(self.plotter.screenshot(None, return_img=True)[..., :3])

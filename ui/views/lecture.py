@@ -60,10 +60,13 @@ def _stepper(state: LectureState) -> LectureStepper:
 
 def build_view(state: LectureState):
     """The :class:`ui.views.window.ViewState` of a lecture state (renders its passes, inspects
-    its pixel in pass 0): what :func:`ui.views.window.build_state` does, plus the scatter window."""
+    its pixel in pass 0): what :func:`ui.views.window.build_state` does, plus the scatter
+    window, the state's pinned variance range and its counter in the title's corner."""
     from psurf_core import RenderSettings, parse_estimator
     from psurf_core.inspect import inspect_pixel
     from psurf_core.render import render
+
+    from .lecture_states import CAPTION_CHARS
 
     scene = load_state_scene(state)
     est = parse_estimator(state.estimator, scene)
@@ -73,7 +76,8 @@ def build_view(state: LectureState):
     view = ViewState(scene_path=str(ROOT / state.scene), scene=scene, estimator=est,
                      seed=int(state.seed), settings=settings, pixel_xy=tuple(state.pixel),
                      acc=res.accumulator, inspection=inspection, stepper=_stepper(state),
-                     initial_passes=max(int(state.passes), 1))
+                     initial_passes=max(int(state.passes), 1), specs=(state.estimator,),
+                     var_clim=state.var_clim, caption_chars=CAPTION_CHARS)
     view.hit = int(state.hit)
     view.n_paths = int(state.n_paths)
     return view
@@ -81,22 +85,27 @@ def build_view(state: LectureState):
 
 def compose_state(plotter, state: LectureState, view, index: int, *,
                   keep_camera: bool = False) -> None:
-    """Draw lecture state ``index`` (the window's panels, the state's camera and counter)."""
+    """Draw lecture state ``index`` (the window's panels, the state's camera and counter;
+    a state without a pinned camera keeps the stage's own view, e.g. Reconstruct's framing
+    of the path)."""
     # Once a window has been shown, pyvista renders after every added actor; one picture is
     # dozens of actors, so render once at the end instead (the caller renders).
     suppressed = plotter.suppress_rendering
     plotter.suppress_rendering = True
     try:
-        compose(plotter, view, keep_camera=keep_camera)
+        view.hint = f"{index + 1}/{len(STATES)}  (tutorial {state.tutorial})  <- ->"
+        if view.show_help:
+            view.show_help = False  # the lecture's own help, below
+            compose(plotter, view, keep_camera=keep_camera)
+            view.show_help = True
+        else:
+            compose(plotter, view, keep_camera=keep_camera)
         plotter.subplot(0, 0)
-        if not keep_camera:
+        if not keep_camera and state.camera is not None:
             plotter.camera_position = [tuple(map(float, v)) for v in state.camera]
             plotter.renderer.ResetCameraClippingRange()
-        scene_view.add_text(plotter, f"{index + 1}/{len(STATES)}  (tutorial {state.tutorial})"
-                                     "  <- ->", 0.985, 0.05, scene_view.FONT_SMALL,
-                            name="stage-hint", colour="#555555", align="right")
         if view.show_help:
-            scene_view.add_text(plotter, HELP, 0.04, 0.78, scene_view.FONT, mono=True,
+            scene_view.add_text(plotter, HELP, 0.04, 0.95, scene_view.FONT, mono=True,
                                 box=True, name="help")
     finally:
         plotter.suppress_rendering = suppressed

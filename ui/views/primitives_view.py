@@ -1,11 +1,12 @@
 """Trace and Create in 3D: photon subpaths and the primitives swept from them (pyvista).
 
 Subpaths are polylines clipped to the medium box (``PhotonPaths.clip``), one colour per scatter
-event. Primitives are drawn as geometry clipped to the box, one colour per family
-(:data:`ui.views.scene_view.FAMILY_COLOURS`): points as spheres of the kernel radius, beams as
-tubes, planes and light copies as polygons, and spheres, cones, cylinders, disks and surfaces of
-revolution as parametric surfaces. A family the drawer does not know (or whose data layout
-changed) falls back to its primitives' bounding boxes, and the legend says so.
+event. Primitives are drawn as geometry clipped to the box, each technique in its own colour
+(:func:`ui.views.palette.technique_colour`, the same in every view): points as spheres of
+the kernel radius, beams as tubes, planes and light copies as polygons, and spheres, cones,
+cylinders, disks and surfaces of revolution as parametric surfaces. A family the drawer does
+not know (or whose data layout changed) falls back to its primitives' bounding boxes, and the
+legend says so.
 """
 
 from __future__ import annotations
@@ -15,12 +16,12 @@ import numpy as np
 from psurf_core.techniques.base import fields_of
 
 from ._vtk import pv
+from .palette import technique_colour, text_on
 from .scene_view import (
     FONT,
     FONT_SMALL,
     LINE,
     add_text,
-    family_colour,
     medium_bounds,
     pt,
     px,
@@ -379,7 +380,7 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
             count += len(rows)
             if mesh.n_points:
                 meshes.append(mesh)
-        col = family_colour(tech.family)
+        col = technique_colour(tname)
         if count == 0:
             status[tname] = "none"
             if list_empty:
@@ -411,22 +412,21 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
 
 
 def add_legend(plotter: pv.Plotter, entries: list, loc: str = "lower right") -> None:
-    """A legend of colour chips (label on its family colour), stacked in a corner.
+    """A legend of colour chips (label on its technique's colour), stacked in a corner of the
+    current renderer, one text line apart whatever the renderer's height.
 
-    ``entries`` is a list of ``[label, colour]``; ``loc`` is ``"lower right"`` (above the
-    stage hint) or ``"upper right"`` (below the caption).
+    ``entries`` is a list of ``[label, colour]``; ``loc`` is ``"lower right"`` or
+    ``"upper right"``.
     """
-    lum = {}
-    for label, col in entries:
-        r, g, b = pv.Color(col).float_rgb
-        lum[label] = 0.2126 * r + 0.7152 * g + 0.0722 * b
-    step = 0.045
+    ren = plotter.renderer
+    vx0, vy0, vx1, vy1 = ren.GetViewport()
+    vh = max((vy1 - vy0) * plotter.window_size[1], 1.0)
+    step = 1.55 * pt(FONT_SMALL) / vh
     n = len(entries)
-    y0 = (0.10 + step * n) if loc == "lower right" else 0.80
+    y0 = (0.02 + step * n) if loc == "lower right" else 0.98
     for i, (label, col) in enumerate(entries):
         add_text(plotter, f" {label} ", 0.985, y0 - i * step, FONT_SMALL, align="right",
-                 colour="black" if lum[label] > 0.45 else "white", background=col,
-                 name=f"legend-{i}")
+                 colour=text_on(col), background=col, name=f"legend-{i}")
 
 
 # --------------------------------------------------------------------------- coverage

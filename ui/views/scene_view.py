@@ -1,8 +1,10 @@
 """The scene in 3D: medium box, lights, occluders, the camera and its frustum (pyvista).
 
-Also the shared look of every view: the Okabe-Ito palette (colour-blind safe), one colour per
-primitive family, and projector-sized fonts and lines. Everything here draws what the core's
-:class:`~psurf_core.scene.Scene` holds; nothing is computed that the core does not expose.
+Also the shared look of every view: the palette (:mod:`ui.views.palette`: Okabe-Ito, one
+colour per technique), projector-sized fonts and lines, and text measured in pixels
+(:func:`text_extent`, :func:`fit_font`) so that no text is cut. Everything here draws what
+the core's :class:`~psurf_core.scene.Scene` holds; nothing is computed that the core does not
+expose.
 """
 
 from __future__ import annotations
@@ -15,33 +17,7 @@ from psurf_core.scene import AreaLight, BoxOccluder, MeshLight, PointLight, Scen
 from ._vtk import pv, register_text_backends, vtkTextRenderer
 
 # --------------------------------------------------------------------------- look
-#: Okabe & Ito (2008), "Color Universal Design": distinguishable with every common colour
-#: vision deficiency.
-OKABE_ITO = {
-    "black": "#000000",
-    "orange": "#E69F00",
-    "sky_blue": "#56B4E9",
-    "green": "#009E73",
-    "yellow": "#F0E442",
-    "blue": "#0072B2",
-    "vermillion": "#D55E00",
-    "purple": "#CC79A7",
-    "grey": "#999999",
-}
-
-#: One colour per primitive family (``Technique.family``).
-FAMILY_COLOURS = {
-    "planes": OKABE_ITO["blue"],
-    "points": OKABE_ITO["purple"],
-    "beams": OKABE_ITO["green"],
-    "spheres": OKABE_ITO["sky_blue"],
-    "cones": OKABE_ITO["vermillion"],
-    "cylinders": OKABE_ITO["orange"],
-    "disks": OKABE_ITO["yellow"],
-    "revolutions": OKABE_ITO["grey"],
-    "single": OKABE_ITO["black"],
-}
-FALLBACK_COLOUR = OKABE_ITO["grey"]
+from .palette import FALLBACK_COLOUR, OKABE_ITO  # noqa: E402, F401 (the views' palette)
 
 LIGHT_COLOUR = OKABE_ITO["yellow"]
 OCCLUDER_COLOUR = "#3a3a3a"
@@ -92,14 +68,16 @@ def _rgb(colour) -> tuple:
 
 def add_text(plotter, text: str, x: float, y: float, size: float, *, mono: bool = False,
              name: str | None = None, bold: bool = False, box: bool = False,
-             colour: str = TEXT_COLOUR, align: str = "left", background=None):
+             colour: str = TEXT_COLOUR, align: str = "left", background=None,
+             size_px: int | None = None):
     """Text whose top-left / top-centre / top-right corner (``align``) is at the normalised
     viewport position ``(x, y)``, at ``size`` points (VTK points, i.e. pixels at 72 dpi, at
-    the design height; pyvista's ``add_text`` would double the number it is given)."""
+    the design height; pyvista's ``add_text`` would double the number it is given), or at
+    ``size_px`` pixels exactly (a size already fitted to its box, :func:`fit_font`)."""
     actor = plotter.add_text(text, position=(x, y), viewport=True, font_size=size,
                              color=colour, font="courier" if mono else "arial", name=name)
     prop = actor.GetTextProperty()
-    prop.SetFontSize(pt(size))
+    prop.SetFontSize(int(size_px) if size_px is not None else pt(size))
     prop.SetVerticalJustificationToTop()
     if align == "center":
         prop.SetJustificationToCentered()
@@ -120,9 +98,60 @@ def add_text(plotter, text: str, x: float, y: float, size: float, *, mono: bool 
     return actor
 
 
-def family_colour(family: str) -> str:
-    """The colour of a primitive family (``Technique.family``); grey when it has none."""
-    return FAMILY_COLOURS.get(family, FALLBACK_COLOUR)
+def text_extent(text: str, size_px: int, *, mono: bool = False,
+                bold: bool = False) -> tuple[int, int]:
+    """``(width, height)`` in pixels of ``text`` (one or more lines) at ``size_px`` points,
+    as VTK's FreeType renderer draws it (Arial, or Courier when ``mono``)."""
+    from ._vtk import vtkTextProperty
+
+    prop = vtkTextProperty()
+    prop.SetFontSize(int(size_px))
+    prop.SetBold(bool(bold))
+    if mono:
+        prop.SetFontFamilyToCourier()
+    else:
+        prop.SetFontFamilyToArial()
+    bb = [0, 0, 0, 0]
+    renderer = vtkTextRenderer.GetInstance()
+    if renderer is None or not text or not renderer.GetBoundingBox(prop, text, bb, 72):
+        lines = text.split("\n") if text else [""]
+        return (int(0.6 * size_px * max(len(s) for s in lines)),
+                int(1.2 * size_px * len(lines)))
+    return bb[1] - bb[0], bb[3] - bb[2]
+
+
+def fit_font(text: str, size_px: int, box_px: tuple, *, mono: bool = False,
+             bold: bool = False, minimum: int = 7) -> int:
+    """The largest font size ``<= size_px`` at which ``text`` fits ``box_px = (width,
+    height)`` (pixels; ``minimum`` at least)."""
+    size = int(size_px)
+    w, h = text_extent(text, size, mono=mono, bold=bold)
+    if w <= box_px[0] and h <= box_px[1]:
+        return size
+    ratio = min(box_px[0] / max(w, 1), box_px[1] / max(h, 1))
+    size = max(int(size * ratio), minimum)
+    while size > minimum:
+        w, h = text_extent(text, size, mono=mono, bold=bold)
+        if w <= box_px[0] and h <= box_px[1]:
+            break
+        size -= 1
+    return size
+
+
+def wrap_to(text: str, width_px: float, size_px: int, *, bold: bool = False) -> str:
+    """``text`` wrapped (at spaces) so that every line is at most ``width_px`` wide."""
+    words = text.split()
+    lines, line = [], ""
+    for word in words:
+        trial = f"{line} {word}" if line else word
+        if line and text_extent(trial, size_px, bold=bold)[0] > width_px:
+            lines.append(line)
+            line = word
+        else:
+            line = trial
+    if line:
+        lines.append(line)
+    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------- geometry
