@@ -42,6 +42,13 @@ class Parser(argparse.ArgumentParser):
     """``ArgumentParser`` whose errors are :class:`CliError` (one line, exit 2, no usage),
     with a "did you mean" for a mistyped subcommand, choice or flag."""
 
+    #: The top-level parser (set by the first parse_args), whose flags span every command.
+    _top: Parser | None = None
+
+    @classmethod
+    def _top_options(cls) -> set:
+        return cls._top.option_strings() if cls._top is not None else set()
+
     def option_strings(self) -> set:
         """Every flag of this parser and of its subcommands."""
         out = set(self._option_string_actions)
@@ -52,7 +59,23 @@ class Parser(argparse.ArgumentParser):
                             else set(sub._option_string_actions))
         return out
 
+    #: The command line being parsed (a subcommand's error sees the whole of it).
+    _argv: list = []
+
+    def parse_args(self, args=None, namespace=None):  # noqa: D102 - argparse hook
+        Parser._argv = list(sys.argv[1:] if args is None else args)
+        Parser._top = self
+        return super().parse_args(args, namespace)
+
     def error(self, message: str):  # noqa: D102 - argparse hook
+        if message.startswith("the following arguments are required"):
+            # A mistyped flag is the likelier cause: name it first.
+            known = self.option_strings() | Parser._top_options()
+            for tok in Parser._argv:
+                flag = tok.split("=")[0]
+                if flag.startswith("--") and flag not in known:
+                    raise CliError(f"unrecognized argument {flag}"
+                                   f"{did_you_mean(flag, sorted(known))}")
         m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
         if m:
             choices = re.findall(r"'([^']*)'", m.group(2))

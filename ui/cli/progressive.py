@@ -56,9 +56,10 @@ passes (and the seconds spent), so the images stay bit-identical to a serial ren
 :meth:`Progressive.take_notices` says what happened. After :data:`MAX_RESTARTS` deaths within
 :data:`RESTART_WINDOW` seconds it stops restarting and reports an error instead.
 
-The worker processes (:mod:`ui.cli.background`, ``spawn`` context, lower priority) run
-:func:`ui.cli.progressive_worker.worker_main`; results come back through a bounded queue, so a
-UI that stops polling stops the worker after a few passes instead of filling memory.
+The worker processes (:mod:`ui.cli.background`, ``spawn`` context, lower priority, a pipe
+pair each) run :func:`ui.cli.progressive_worker.worker_main`; results come back through a
+bounded buffer, so a UI that stops polling stops the worker after a few passes instead of
+filling memory.
 """
 
 from __future__ import annotations
@@ -205,8 +206,7 @@ class Progressive:
             self._engine = Engine(job)
             return
         if self._pool is None:
-            self._pool = Workers(worker_main, self.workers, "psurf-progressive",
-                                 QUEUE_SIZE * self.workers)
+            self._pool = Workers(worker_main, self.workers, "psurf-progressive", QUEUE_SIZE)
         self._send_job(job)
 
     def _send_job(self, job: Job) -> None:

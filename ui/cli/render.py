@@ -1,8 +1,9 @@
 """``python app.py render``: render a scene progressively to .npz (and .png/.exr).
 
 The command (:func:`add_render_parser`, :func:`cmd_render`), its defaults, and the ``.npz`` it
-writes (:func:`npz_payload`, also used by ``demo``). The flag types and helpers it shares with
-the other commands are :mod:`ui.cli.common`'s, the checkpoints :mod:`ui.cli.checkpoint`'s and
+writes (:func:`npz_payload`: mean, variance, counts, provenance and the scene file's SHA-256,
+also used by ``demo``). The flag types and helpers it shares with the other commands are
+:mod:`ui.cli.common`'s, the checkpoints :mod:`ui.cli.checkpoint`'s and
 ``--dask``/``--workers``/``--jobs`` :mod:`ui.cli.parallel`'s. No pyvista here: only argparse,
 numpy and :mod:`psurf_core`. ``app.py`` wires it in with::
 
@@ -189,6 +190,10 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
         "min_scatter": np.int64(scene.min_scatter),
         "max_scatter": np.int64(scene.max_scatter),
     }
+    if os.path.isfile(scene.path):  # which scene file, exactly (a bundled reference is checked)
+        from psurf_core.checkpoint import file_sha256
+
+        data["scene_sha256"] = np.str_(file_sha256(scene.path))
     data.update(extra or {})
     return data
 

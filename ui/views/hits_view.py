@@ -98,14 +98,16 @@ def add_hit_points(plotter: pv.Plotter, inspection, rows, *, labels: bool = True
     top = rows[rank[rows] < TABLE_ROWS]
     top = top[np.argsort(rank[top])]
     rest = rows[rank[rows] >= TABLE_ROWS]
-    if rest.size:
-        plotter.add_mesh(pv.PolyData(t.point[rest]), color=HIT_COLOUR, point_size=px(7),
-                         render_points_as_spheres=True, name="hits-rest")
+    # (pyvista's add_mesh(name=X) removes the actors named "X-...": "hits" goes first)
     if top.size:
         g = pv.PolyData(t.point[top]).glyph(
             geom=pv.Sphere(radius=radius_scale * sc, theta_resolution=16, phi_resolution=12),
             scale=False, orient=False)
         plotter.add_mesh(g, color=HIT_COLOUR, smooth_shading=True, name="hits")
+    if rest.size:
+        plotter.add_mesh(pv.PolyData(t.point[rest]), color=HIT_COLOUR, point_size=px(7),
+                         render_points_as_spheres=True, name="hits-rest")
+    if top.size:
         if labels:
             add_ray_labels(plotter, inspection, top, [f"#{int(rank[r])}" for r in top])
 
@@ -273,16 +275,16 @@ def add_member_surfaces(plotter: pv.Plotter, inspection, recon: dict, members: d
                                    inspection.radii.get(name, 0.0))
         if mesh.n_points:
             if how == "bounds":
-                plotter.add_mesh(mesh, color=col, line_width=px(3), name=f"member-{name}")
+                plotter.add_mesh(mesh, color=col, line_width=px(3), name=f"member-{name}:mesh")
             else:
                 plotter.add_mesh(mesh, color=col, opacity=0.55 if own else opacity,
-                                 show_edges=False, culling=False, name=f"member-{name}")
+                                 show_edges=False, culling=False, name=f"member-{name}:mesh")
                 edges = mesh.extract_feature_edges(boundary_edges=True, feature_edges=False,
                                                    manifold_edges=False,
                                                    non_manifold_edges=False)
                 if edges.n_points:
                     plotter.add_mesh(edges, color=col, line_width=px(4 if own else 2),
-                                     name=f"member-{name}-edges")
+                                     name=f"member-{name}:edges")
         entries.append([label, col])
     if entries:
         add_legend(plotter, entries, loc="lower right")

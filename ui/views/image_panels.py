@@ -14,6 +14,7 @@ from psurf_core import images as im
 
 from . import scene_view
 from ._vtk import pv, vtkTextActor
+from .palette import text_on
 from .panel_modes import (  # noqa: F401 - the modes' names are part of this module's API
     MEAN_VARIANCE_BAR,
     MODE_HELP,
@@ -127,7 +128,7 @@ def add_variance_panel(plotter: pv.Plotter, var: np.ndarray, pixel_xy, title: st
 
 
 def _label(plotter, text: str, x: float, y: float, size_px: int, *, name: str,
-           align: str = "center", bold: bool = False):
+           align: str = "center", bold: bool = False, background: str | None = None):
     """A text whose top ``align`` point is at the normalised viewport position ``(x, y)``,
     ``size_px`` pixels (already scaled).
 
@@ -143,7 +144,11 @@ def _label(plotter, text: str, x: float, y: float, size_px: int, *, name: str,
     prop = actor.GetTextProperty()
     prop.SetFontSize(int(size_px))
     prop.SetFontFamilyToArial()
-    prop.SetColor(*pv.Color(scene_view.TEXT_COLOUR).float_rgb)
+    prop.SetColor(*pv.Color(scene_view.TEXT_COLOUR if background is None
+                            else text_on(background)).float_rgb)
+    if background is not None:  # a technique's tile: its title on the technique's colour
+        prop.SetBackgroundColor(*pv.Color(background).float_rgb)
+        prop.SetBackgroundOpacity(1.0)
     prop.SetBold(bold)
     prop.SetVerticalJustificationToTop()
     {"center": prop.SetJustificationToCentered, "right": prop.SetJustificationToRight,
@@ -289,7 +294,7 @@ class PanelView:
         h, w = area.tiles[0].values.shape if area.tiles and area.tiles[0].values is not None \
             else (area.tiles[0].rgb.shape[:2] if area.tiles else (1, 1))
         rows, cols, s, label_px, fitted = self._fitted(area, vw, vh, top_px, bottom_px, (h, w))
-        key = (tag, id(ren), tuple((t.rgb is None, t.cmap, t.log, t.pixel, t.frame)
+        key = (tag, id(ren), tuple((t.rgb is None, t.cmap, t.log, t.pixel, t.frame, t.colour)
                                    for t in area.tiles),
                area.rows, area.bar, round(vw), round(vh), (h, w), round(label_px),
                round(top_px), pixel_xy is None)
@@ -384,7 +389,7 @@ class PanelView:
             names.append(name)
             text = _label(plotter, tile.title, (px0 + w * s / 2) / vw, py_top / vh,
                           pt(FONT_SMALL), name=f"{name}-title", align="center",
-                          bold=tile.frame)
+                          bold=tile.frame, background=tile.colour)
             names.append(f"{name}-title")
             if tile.frame:  # the inspected estimator: a frame around its tile
                 g = max(px(3), 3.0)

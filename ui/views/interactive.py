@@ -274,7 +274,7 @@ class App:
         # Only primitives: the translucent medium box in front of them must not catch the ray.
         picker.PickFromListOn()
         for name, actor in ren.actors.items():
-            if name.partition("-")[0] in primitives_view.PRIM_ACTORS:
+            if name.partition("-")[0] in primitives_view.PRIM_ACTORS and name.endswith(":mesh"):
                 picker.AddPickList(actor)
         if not picker.Pick(display_xy[0], display_xy[1], 0.0, ren):
             return None

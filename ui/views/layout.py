@@ -47,8 +47,9 @@ TITLE_PT, CAPTION_PT, TEXT_PT = 30, 18, 18
 FOOTER_ROW_PX = 38
 #: Height of the slider block at the design height, pixels.
 SLIDERS_PX = 96
-#: Share of the left column the stage panel may take at most.
-PANEL_MAX = 0.55
+#: Share of the left column the stage panel may take at most; the 3D view's least share of the
+#: height (both above the footer).
+PANEL_MAX, MIN_VIEW = 0.5, 0.28
 #: The stage panel stays in the left column while its text needs no less than this share of
 #: the nominal font there (else it spans the window's width).
 PANEL_SHRINK = 0.8
@@ -172,6 +173,15 @@ def window_layout(size, *, focus: str = "split", footer_rows: int = 2,
     title_h = min(title_px / h, 0.3)
     body = top - col_bottom - title_h
     slider_h = min(SLIDERS_PX * s / h, 0.25 * body) if sliders else 0.0
+    # The 3D view keeps at least MIN_VIEW of the height: a long text shrinks to fit instead.
+    view_h = body - slider_h - (0.0 if wide else panel_h)
+    short = MIN_VIEW * avail - view_h
+    if short > 0:
+        cut = min(short, panel_h - 0.1 * avail)
+        panel_h -= max(cut, 0.0)
+        if wide:
+            col_bottom = foot + panel_h
+            body = top - col_bottom - title_h
     y_panel_top = foot + panel_h
     y_view_bottom = (col_bottom if wide else y_panel_top) + slider_h
     title = Rect(0.0, top - title_h, left, top)

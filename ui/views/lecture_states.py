@@ -110,7 +110,7 @@ STATES: tuple[LectureState, ...] = (
     LectureState(
         2, "Photon planes: no blur, unbiased",
         "Integrating the last two distances t1, t2 sweeps a plane: the camera ray meets it "
-        "exactly, no kernel needed. Arrows: psi (black) and the scaled normal n (red).",
+        "exactly, no kernel needed. Arrows: psi (grey) and the scaled normal n (black).",
         "scenes/area.toml", "planes", "intersect", seed=3, pixel=(32, 16), scatter=(2, 2),
         photons=1000, passes=4, camera=BOX),
     LectureState(

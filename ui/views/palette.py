@@ -16,7 +16,9 @@ other member's colour):
   the legends name the technique, so the two never need telling apart by colour alone.
 
 Colours never carry a second meaning: a member chip that is on is filled with its technique's
-colour, one that is off is white with grey text (``chip_colours``).
+colour, one that is off is white with grey text (``chip_colours``); what is not a technique
+(the query ray, hits, normals, the reconstructed path, lights, occluders) is drawn in black,
+white, greys or a pale cream.
 """
 
 from __future__ import annotations

@@ -22,6 +22,8 @@ import numpy as np
 from psurf_core import images as im
 from psurf_core.accumulate import Welford
 
+from .palette import technique_colour
+
 __all__ = ["MODES", "MODE_HELP", "Area", "Entry", "Tile", "VarScale", "entries_of",
            "mode_areas", "next_mode"]
 
@@ -95,6 +97,7 @@ class Tile:
     cmap: str = VARIANCE_CMAP
     pixel: bool = False
     frame: bool = False
+    colour: str | None = None  # the technique's (its title is set on it), or None
 
 
 @dataclass
@@ -271,10 +274,10 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
         imgs = b.technique_images()
         w = b.technique_weights()
         tiles_a = [Tile(f"{e.label}: the sum", rgb=im.tone_map(total, exposure))]
-        tiles_a += [Tile(f"{n}", rgb=im.tone_map(x, exposure)) for n, x in zip(names, imgs,
-                                                                                strict=True)]
-        tiles_b = [Tile(n, values=x, clim=(0.0, 1.0), log=False, cmap=WEIGHT_CMAP)
-                   for n, x in zip(names, w, strict=True)]
+        tiles_a += [Tile(f"{n}", rgb=im.tone_map(x, exposure), colour=technique_colour(n))
+                    for n, x in zip(names, imgs, strict=True)]
+        tiles_b = [Tile(n, values=x, clim=(0.0, 1.0), log=False, cmap=WEIGHT_CMAP,
+                        colour=technique_colour(n)) for n, x in zip(names, w, strict=True)]
         return [Area(f"weighted contributions, {plural(b.n, 'pass')}", tiles_a),
                 Area("weight maps: share of each pixel", tiles_b, bar=WEIGHT_BAR)]
     # bounces
@@ -291,6 +294,8 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
                     for lbl, x in zip(lay.labels, un, strict=True)]
                    + [Tile(f"{lbl} weighted", rgb=im.tone_map(x, ex))
                       for lbl, x in zip(lay.labels, we, strict=True)])
+        for tile in tiles_b:
+            tile.colour = technique_colour(names[t])
         return [area_a, Area(f"{names[t]}: unweighted / weighted", tiles_b, rows=2)]
     kk = _k_of(lay, k)
     kb = lay.k_bin(kk)
@@ -298,8 +303,8 @@ def mode_areas(source, mode: str, *, reference: np.ndarray | None = None,
     # Techniques that cannot produce this K (plane-t1t3 at K = 2) would be black tiles.
     ts = [t for t in range(len(names)) if b.unweighted.mean[t, kb].any()] or \
         list(range(len(names)))
-    tiles_b = ([Tile(f"{names[t]} unweighted", rgb=im.tone_map(b.unweighted.mean[t, kb], ex))
-                for t in ts]
-               + [Tile(f"{names[t]} weighted", rgb=im.tone_map(b.weighted.mean[t, kb], ex))
-                  for t in ts])
+    tiles_b = ([Tile(f"{names[t]} unweighted", rgb=im.tone_map(b.unweighted.mean[t, kb], ex),
+                     colour=technique_colour(names[t])) for t in ts]
+               + [Tile(f"{names[t]} weighted", rgb=im.tone_map(b.weighted.mean[t, kb], ex),
+                       colour=technique_colour(names[t])) for t in ts])
     return [area_a, Area(f"{lay.labels[kb]}: unweighted / weighted", tiles_b, rows=2)]

@@ -30,7 +30,9 @@ from .scene_view import (
 
 #: Cell arrays naming the primitive (row in its batch) and batch a drawn cell belongs to.
 PRIM_ROW, PRIM_BATCH = "prim_row", "prim_batch"
-#: Prefixes of the actor names primitives are drawn under (``<prefix>-<technique>``).
+#: Prefixes of the actor names primitives are drawn under (``<prefix>-<technique>:mesh`` and
+#: ``...:edges``: pyvista's ``add_mesh(name=X)`` removes every actor named ``X-...``, so no
+#: name may be another's prefix followed by ``-``, as ``plane-t1t2`` is ``plane-t1t2-short``'s).
 PRIM_ACTORS = ("prims", "hitprims", "context", "coverage")
 #: Default number of photon subpaths drawn (``+``/``-`` in the window change it).
 DEFAULT_PATHS = 24
@@ -390,10 +392,11 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
                                                      if meshes else pv.PolyData())
         if merged.n_points:
             if how == "bounds":
-                plotter.add_mesh(merged, color=col, line_width=px(width), name=f"{name}-{tname}")
+                plotter.add_mesh(merged, color=col, line_width=px(width),
+                                 name=f"{name}-{tname}:mesh")
             else:
                 plotter.add_mesh(merged, color=col, opacity=opacity, show_edges=False,
-                                 smooth_shading=False, name=f"{name}-{tname}",
+                                 smooth_shading=False, name=f"{name}-{tname}:mesh",
                                  culling=False)
                 if edges:
                     fe = merged.extract_feature_edges(boundary_edges=True, feature_edges=False,
@@ -401,7 +404,7 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
                                                       non_manifold_edges=False)
                     if fe.n_points:
                         plotter.add_mesh(fe, color=col, line_width=px(width),
-                                         name=f"{name}-{tname}-edges")
+                                         name=f"{name}-{tname}:edges")
         tag = "bounds only (no drawer)" if how == "bounds" else "drawn"
         status[tname] = f"{count} {tag}"
         entries.append([f"{tech.family}: {tname} ({count}{', bounds' if how == 'bounds' else ''})",
@@ -496,9 +499,9 @@ def picked_primitive(renderer, actor, cell_id: int):
     if actor is None or cell_id < 0:
         return None
     name = next((n for n, a in renderer.actors.items() if a is actor), None)
-    if name is None or name.endswith("-edges"):
+    if name is None or not name.endswith(":mesh"):
         return None
-    prefix, _, technique = name.partition("-")
+    prefix, _, technique = name[: -len(":mesh")].partition("-")
     if prefix not in PRIM_ACTORS or not technique:
         return None
     mesh = actor.GetMapper().GetInput()

@@ -19,7 +19,8 @@ from ._vtk import pv, register_text_backends, vtkTextRenderer
 # --------------------------------------------------------------------------- look
 from .palette import FALLBACK_COLOUR, OKABE_ITO  # noqa: E402, F401 (the views' palette)
 
-LIGHT_COLOUR = OKABE_ITO["yellow"]
+#: Lights: a pale warm white with black edges (yellow is the disk techniques' colour).
+LIGHT_COLOUR = "#FFF1BA"
 OCCLUDER_COLOUR = "#3a3a3a"
 MEDIUM_COLOUR = OKABE_ITO["sky_blue"]
 HIGHLIGHT = OKABE_ITO["black"]
@@ -281,7 +282,7 @@ def add_scene(plotter: pv.Plotter, scene: Scene, *, pixel_xy=None, box_opacity=0
             c = lt.corner + 0.5 * (lt.edge_u + lt.edge_v)
             arrow = pv.Arrow(start=c, direction=lt.normal, scale=6 * sc, tip_length=0.3,
                              tip_radius=0.12, shaft_radius=0.04)
-            plotter.add_mesh(arrow, color=OKABE_ITO["orange"], name=f"light{i}-normal")
+            plotter.add_mesh(arrow, color="#333333", name=f"light{i}-normal")
             label_pts.append(c - lt.normal * 2.5 * sc)
         elif isinstance(lt, MeshLight):
             plotter.add_mesh(triangles_mesh(lt.triangles), color=LIGHT_COLOUR,
