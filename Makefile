@@ -5,7 +5,7 @@ VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 export MPLBACKEND := Agg
 
-.PHONY: demo demo-figure test test-slow bench bench-quick lint venv clean
+.PHONY: demo demo-figure showcase-reference test test-slow bench bench-quick lint venv clean
 
 venv: $(STAMP)
 
@@ -32,6 +32,12 @@ $(STAMP): pyproject.toml
 # window where a display exists, else out/comparison.png, out/convergence.gif, out/app_*.png.
 demo: $(STAMP)
 	$(VPY) app.py demo
+
+# The showcase's reference (relMSE in make demo): photon planes, unbiased and here the least
+# noisy per second (checked against 45 min of the path tracer: README, "make demo"); ~25 min.
+showcase-reference: $(STAMP)
+	$(VPY) app.py render scenes/showcase.toml --estimator planes --photons 16000 --time 1500 \
+	    --seed 1000 --out scenes/showcase_reference.npz
 
 # The README's first picture: the headless demo's comparison, copied to docs/.
 demo-figure: $(STAMP)

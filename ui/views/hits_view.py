@@ -63,14 +63,15 @@ def add_query_ray(plotter: pv.Plotter, inspection, *, width: float = 8.0) -> Non
 
 
 def add_labels(plotter: pv.Plotter, scene, points: np.ndarray, labels: list, *, dist: float,
-               name: str, size: float = FONT, colour: str = TEXT_COLOUR) -> object:
+               name: str, size: float = FONT, colour: str = TEXT_COLOUR,
+               camera=None) -> object:
     """Labels that are all drawn (none hidden where they would touch), each moved ``dist``
     away from its point in the direction that keeps the labels apart on screen
     (:func:`label_offsets`) and tied to it by a thin leader line."""
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
     if not len(pts):
         return None
-    anchors = pts + label_offsets(scene, pts, dist)
+    anchors = pts + label_offsets(scene, pts, dist, camera)
     n = len(pts)
     lines = np.column_stack([np.full(n, 2), np.arange(n), np.arange(n) + n]).ravel()
     plotter.add_mesh(pv.PolyData(np.vstack([pts, anchors]), lines=lines), color=LEADER_COLOUR,
@@ -84,7 +85,7 @@ def add_labels(plotter: pv.Plotter, scene, points: np.ndarray, labels: list, *, 
 
 
 def add_hit_points(plotter: pv.Plotter, inspection, rows, *, labels: bool = True,
-                   radius_scale: float = 0.7) -> None:
+                   radius_scale: float = 0.7, camera=None) -> None:
     """Hit points: the table's top :data:`TABLE_ROWS` as white spheres, labelled ``#i``
     (display order) when asked, every other hit as a small point (an MIS set can have
     thousands: one sphere mesh each would take seconds to build and draw)."""
@@ -109,11 +110,12 @@ def add_hit_points(plotter: pv.Plotter, inspection, rows, *, labels: bool = True
                          render_points_as_spheres=True, name="hits-rest")
     if top.size:
         if labels:
-            add_ray_labels(plotter, inspection, top, [f"#{int(rank[r])}" for r in top])
+            add_ray_labels(plotter, inspection, top, [f"#{int(rank[r])}" for r in top],
+                           camera=camera)
 
 
 def add_ray_labels(plotter: pv.Plotter, inspection, rows, labels: list, *,
-                   name: str = "hit-labels") -> object:
+                   name: str = "hit-labels", camera=None) -> object:
     """Labels of hits on the query ray that never cover each other: lined up beside the ray
     (on screen, in the order of the hits along it, one label height apart) and tied to their
     hits by leader lines. Hits cluster along the ray, so labels next to their hits would
@@ -124,8 +126,10 @@ def add_ray_labels(plotter: pv.Plotter, inspection, rows, labels: list, *,
     rows = np.asarray(rows, dtype=np.int64)
     if not rows.size:
         return None
-    pos, focal, up = (np.asarray(v, float) for v in scene_view.overview_camera(scene))
+    pos, focal, up = (np.asarray(v, float) for v in
+                      (camera or scene_view.overview_camera(scene)))
     back = (pos - focal) / np.linalg.norm(pos - focal)
+    up = up - (up @ back) * back
     up = up / np.linalg.norm(up)
     right = np.cross(up, back)
     d = t.psi[rows[0]]
@@ -159,7 +163,7 @@ def add_ray_labels(plotter: pv.Plotter, inspection, rows, labels: list, *,
     return actor
 
 
-def add_normals(plotter: pv.Plotter, inspection, rows) -> None:
+def add_normals(plotter: pv.Plotter, inspection, rows, *, camera=None) -> None:
     """At each hit: the camera direction ``psi`` (grey) and the scaled normal ``n``
     (black, labelled with the hit's table number; length proportional to ``|n|``,
     clamped to stay readable)."""
@@ -192,7 +196,7 @@ def add_normals(plotter: pv.Plotter, inspection, rows) -> None:
                                                  shaft_radius=0.05)),
                          color=NORMAL_COLOUR, name="normal-arrows")
         tips = t.point[rows][ok] + unit * length[:, None]
-        tips = tips + label_offsets(inspection.scene, tips, 1.5 * sc)
+        tips = tips + label_offsets(inspection.scene, tips, 1.5 * sc, camera)
         rank = {int(r): i for i, r in enumerate(hit_order(inspection))}
         actor = plotter.add_point_labels(
             tips, [f"n #{rank[int(r)]}" for r in rows[ok]],
@@ -230,7 +234,7 @@ def reconstruct_camera(recon: dict, scene, margin: float = 1.35):
     return [tuple(centre + dist * back), tuple(centre), tuple(up)]
 
 
-def add_reconstruction(plotter: pv.Plotter, inspection, recon: dict) -> None:
+def add_reconstruction(plotter: pv.Plotter, inspection, recon: dict, *, camera=None) -> None:
     """The full path a hit implies (thick, every vertex labelled: no two labels share one)
     and, thin and grey, the photon's own sampled vertices it replaced."""
     scene = inspection.scene
@@ -249,7 +253,7 @@ def add_reconstruction(plotter: pv.Plotter, inspection, recon: dict) -> None:
                                      scale=False, orient=False)
     plotter.add_mesh(g, color="black", name="recon-vertices")
     add_labels(plotter, scene, poly[:-1], list(recon["labels"][:-1]),
-               dist=max(0.16 * radius, 1.5 * sc), name="recon-labels")
+               dist=max(0.16 * radius, 1.5 * sc), name="recon-labels", camera=camera)
 
 
 def add_member_surfaces(plotter: pv.Plotter, inspection, recon: dict, members: dict, *,
@@ -291,14 +295,17 @@ def add_member_surfaces(plotter: pv.Plotter, inspection, recon: dict, members: d
     return entries
 
 
-def label_offsets(scene, pts: np.ndarray, dist: float) -> np.ndarray:
+def label_offsets(scene, pts: np.ndarray, dist: float, camera=None) -> np.ndarray:
     """(N, 3) world offsets for labels of ``pts`` that keep them apart on screen.
 
-    Greedy, in the plane of the overview view: each label takes, of eight directions, the
+    Greedy, in the plane of the view (``camera`` ``(position, focal point, view up)``,
+    default the overview's): each label takes, of eight directions, the
     one whose label position is farthest from every vertex and every label placed so far.
     """
-    pos, focal, up = (np.asarray(v, float) for v in scene_view.overview_camera(scene))
+    pos, focal, up = (np.asarray(v, float) for v in
+                      (camera or scene_view.overview_camera(scene)))
     back = (pos - focal) / np.linalg.norm(pos - focal)
+    up = up - (up @ back) * back
     up = up / np.linalg.norm(up)
     right = np.cross(up, back)
     ang = np.radians([90, 45, 135, 0, 180, 270, 315, 225])

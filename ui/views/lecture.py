@@ -77,7 +77,8 @@ def build_view(state: LectureState):
                      seed=int(state.seed), settings=settings, pixel_xy=tuple(state.pixel),
                      acc=res.accumulator, inspection=inspection, stepper=_stepper(state),
                      initial_passes=max(int(state.passes), 1), specs=(state.estimator,),
-                     var_clim=state.var_clim, caption_chars=CAPTION_CHARS)
+                     var_clim=state.var_clim, caption_chars=CAPTION_CHARS,
+                     camera_pin=state.camera)
     view.hit = int(state.hit)
     view.n_paths = int(state.n_paths)
     return view
@@ -85,9 +86,9 @@ def build_view(state: LectureState):
 
 def compose_state(plotter, state: LectureState, view, index: int, *,
                   keep_camera: bool = False) -> None:
-    """Draw lecture state ``index`` (the window's panels, the state's camera and counter;
-    a state without a pinned camera keeps the stage's own view, e.g. Reconstruct's framing
-    of the path)."""
+    """Draw lecture state ``index`` (the window's panels, the state's camera (``view.camera_pin``)
+    and counter; a state without a pinned camera has the stage's own view, e.g. Reconstruct's
+    framing of the path)."""
     # Once a window has been shown, pyvista renders after every added actor; one picture is
     # dozens of actors, so render once at the end instead (the caller renders).
     suppressed = plotter.suppress_rendering
@@ -101,9 +102,6 @@ def compose_state(plotter, state: LectureState, view, index: int, *,
         else:
             compose(plotter, view, keep_camera=keep_camera)
         plotter.subplot(0, 0)
-        if not keep_camera and state.camera is not None:
-            plotter.camera_position = [tuple(map(float, v)) for v in state.camera]
-            plotter.renderer.ResetCameraClippingRange()
         if view.show_help:
             scene_view.add_text(plotter, HELP, 0.04, 0.95, scene_view.FONT, mono=True,
                                 box=True, name="help")

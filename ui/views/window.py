@@ -143,8 +143,10 @@ class ViewState:
     caption_chars: int = max(len(c) for c in CAPTIONS.values())
     #: The hint at the top right (lecture mode puts its counter there); None: the stage's.
     hint: str | None = None
-    #: What the 3D camera was last framed for (auto-zoom of Reconstruct); see ``compose``.
+    #: What the 3D camera was last framed for (auto-zoom of Reconstruct); see ``compose``; a
+    #: pinned camera ``(position, focal point, view up)`` (lecture states) instead.
     framed: tuple | None = None
+    camera_pin: tuple | None = None
     layout: object = None
 
     @property
@@ -386,7 +388,8 @@ def compose_title(plotter: pv.Plotter, state: ViewState) -> None:
     add_text(plotter, text, 0.015, top, FONT_SMALL, size_px=cap_px, name="caption")
 
 
-def _compose_3d(plotter: pv.Plotter, state: ViewState) -> None:
+def _compose_3d(plotter: pv.Plotter, state: ViewState, camera=None) -> None:
+    """The 3D view of the stage (labels are placed for ``camera``, the view it will have)."""
     ins = state.inspection
     scene = state.scene
     stage = state.stage
@@ -413,9 +416,9 @@ def _compose_3d(plotter: pv.Plotter, state: ViewState) -> None:
                                            legend=False, name="context")
         hits_view.add_hit_primitives(plotter, ins, top)
         hits_view.add_hit_points(plotter, ins, np.arange(len(t)),
-                                 labels=(stage == "evaluate"))
+                                 labels=(stage == "evaluate"), camera=camera)
         if stage == "intersect":
-            hits_view.add_normals(plotter, ins, top[: stage_text.NORMAL_ROWS])
+            hits_view.add_normals(plotter, ins, top[: stage_text.NORMAL_ROWS], camera=camera)
     else:
         hits_view.add_query_ray(plotter, ins)
         recon, _ = _recon(state)
@@ -425,7 +428,7 @@ def _compose_3d(plotter: pv.Plotter, state: ViewState) -> None:
                 hits_view.add_member_surfaces(plotter, ins, recon, members)
             else:  # a kernel estimator: no exact path, only its own primitive
                 hits_view.add_hit_primitives(plotter, ins, [recon["row"]], opacity=0.6)
-            hits_view.add_reconstruction(plotter, ins, recon)
+            hits_view.add_reconstruction(plotter, ins, recon, camera=camera)
     target = coverage_target(state) if state.coverage else None
     if target is not None:
         name, batch, prim = target
@@ -435,8 +438,10 @@ def _compose_3d(plotter: pv.Plotter, state: ViewState) -> None:
 
 
 def _home_camera(state: ViewState):
-    """``(key, camera)``: where the 3D view looks by default at this stage (Reconstruct:
-    framing the selected hit's path; otherwise the overview)."""
+    """``(key, camera)``: where the 3D view looks by default at this stage (a pinned camera
+    (lecture); Reconstruct: framing the selected hit's path; otherwise the overview)."""
+    if state.camera_pin is not None:
+        return ("pin", state.camera_pin), [tuple(map(float, v)) for v in state.camera_pin]
     if state.stage == "reconstruct":
         recon, k = _recon(state)
         if recon is not None and recon.get("polyline") is not None:
@@ -457,14 +462,15 @@ def compose(plotter: pv.Plotter, state: ViewState, *, keep_camera: bool = False)
     compose_title(plotter, state)
     plotter.subplot(*CELL_3D)
     cam_pos = plotter.camera_position if keep_camera else None
-    plotter.renderer.clear_actors()
-    _clear_bars(plotter)
-    plotter.renderer.set_background(scene_view.BACKGROUND)
-    _compose_3d(plotter, state)
     key, home = _home_camera(state)
     if cam_pos is None or key != state.framed:
         cam_pos = home
     state.framed = key
+    cam_pos = [tuple(map(float, v)) for v in cam_pos]
+    plotter.renderer.clear_actors()
+    _clear_bars(plotter)
+    plotter.renderer.set_background(scene_view.BACKGROUND)
+    _compose_3d(plotter, state, camera=cam_pos)
     plotter.camera_position = cam_pos
     plotter.renderer.ResetCameraClippingRange()
     if state.show_help:
