@@ -83,9 +83,10 @@ __all__ = ["EstimatorRun", "Job", "Progressive", "compare_rows"]
 QUEUE_SIZE = 6
 #: Seconds ``poll`` spends at most unpacking results (keeps the UI frame short).
 POLL_BUDGET = 0.03
-#: A warm-up longer than this is a compilation (numba loads a cached kernel in about a
-#: second); shorter ones are shown as "loading kernels".
-COMPILE_NOTE_AFTER = 1.5
+#: A warm-up longer than this (wall seconds) is shown as "compiling kernels (first run)" while
+#: it lasts (numba loads a cached kernel in about a second); one that took this many CPU
+#: seconds was a compilation (a busy machine stretches wall time, not CPU time).
+COMPILE_NOTE_AFTER, COMPILE_CPU = 1.5, 4.0
 #: Give up restarting after this many worker deaths within :data:`RESTART_WINDOW` seconds.
 MAX_RESTARTS, RESTART_WINDOW = 3, 120.0
 
@@ -301,18 +302,21 @@ class Progressive:
             if stacks is not None and run.breakdown is not None:
                 run.breakdown.add_arrays(*stacks)
 
-    def _warmed(self, e: int, seconds: float) -> None:
+    def _warmed(self, e: int, seconds: float, cpu: float) -> None:
         run = self.runs[e]
         run.warming_since = None
         run.compile_seconds += seconds
-        if seconds >= COMPILE_NOTE_AFTER:
+        if cpu >= COMPILE_CPU:
             self._notices.append(f"{run.spec}: kernels compiled in {seconds:.0f} s (first "
                                  "run; not counted as render time)")
+        elif seconds >= COMPILE_NOTE_AFTER:
+            self._notices.append(f"{run.spec}: kernels loaded in {seconds:.0f} s (not "
+                                 "counted as render time)")
 
     def _render_here(self, e: int) -> None:
         """``workers=0``: warm up (compile) estimator ``e`` if needed, render its next pass."""
         if not self._engine.warmed[e]:
-            self._warmed(e, self._engine.warm(e))
+            self._warmed(e, *self._engine.warm(e))
         self._take(*self._engine.render(e))
 
     def poll(self, budget: float = POLL_BUDGET) -> int:
@@ -352,7 +356,7 @@ class Progressive:
             elif kind == "warming":
                 self.runs[msg[2]].warming_since = time.monotonic()
             elif kind == "warmed":
-                self._warmed(msg[2], msg[3])
+                self._warmed(msg[2], msg[3], msg[4])
             elif kind == "idle":
                 self._idle.add(msg[2])
             elif kind == "error":

@@ -4,7 +4,7 @@ or in the UI for ``workers=0``) and :func:`worker_main` (the process's loop).
 
 Messages in (one control queue per worker): ``("job", gen, Job)``, ``("pause", bool)``,
 ``("stop",)``. Messages out (the shared results queue): ``("warming", gen, e)`` before
-estimator ``e``'s kernels are compiled or loaded, ``("warmed", gen, e, seconds)`` after,
+estimator ``e``'s kernels are compiled or loaded, ``("warmed", gen, e, wall, cpu)`` after,
 ``("pass", gen, e, i, seconds, image, stacks)``, ``("idle", gen, worker)`` when the job is
 done, ``("error", gen, text)``. ``gen`` is the job's generation: the UI ignores messages of
 a job it has replaced.
@@ -100,15 +100,16 @@ class Engine:
               and (j.max_seconds is None or self.spent[e] < j.max_seconds)]
         return min(ok, key=lambda e: (self.spent[e], e)) if ok else None
 
-    def warm(self, e: int) -> float:
-        """Compile (or load) estimator ``e``'s kernels; the seconds it took (0.0 when done
-        already). Not counted in :attr:`spent`."""
+    def warm(self, e: int) -> tuple[float, float]:
+        """Compile (or load) estimator ``e``'s kernels: ``(wall, cpu)`` seconds it took (0s
+        when done already; CPU seconds tell compiling, tens of seconds, from loading a
+        cached kernel, about one, on a busy machine too). Not counted in :attr:`spent`."""
         if self.warmed[e]:
-            return 0.0
-        t0 = time.perf_counter()
+            return 0.0, 0.0
+        t0, c0 = time.perf_counter(), time.process_time()
         warm_up(self.job.scene, self.ests[e], self.job.settings)
         self.warmed[e] = True
-        return time.perf_counter() - t0
+        return time.perf_counter() - t0, time.process_time() - c0
 
     def render(self, e: int):
         """Render estimator ``e``'s next pass: ``(e, pass_index, seconds, image, stacks)``."""
@@ -194,8 +195,7 @@ def worker_main(worker_id: int, n_workers: int, control, results) -> None:
         try:
             if not engine.warmed[e]:
                 results.put(("warming", my_gen, e))
-                seconds = engine.warm(e)
-                results.put(("warmed", my_gen, e, seconds))
+                results.put(("warmed", my_gen, e, *engine.warm(e)))
             out = ("pass", my_gen, *engine.render(e))
         except Exception as ex:
             results.put(("error", my_gen, f"{type(ex).__name__}: {ex}\n"

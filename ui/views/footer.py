@@ -112,15 +112,14 @@ class Controls:
             elif action == "inspect" and len(specs) < 2:
                 continue
             buttons.append((action, f" {label} ", BUTTON_COLOUR, "#ffffff", "#ffffff"))
-        self._backdrop(self.rows * row_h)  # replaced below once the rows are known
+        # The backdrop first (drawn under the chips), as tall as the rows once they are known.
+        backdrop = self._backdrop(self.rows * row_h)
+        self.props.append(backdrop)
         rows = self._flow(buttons, 0, size, row_h)
         if chips:
             rows += self._flow(chips, rows, size, row_h)
         self.rows = rows
-        for a in self.props[:1]:  # the backdrop: as tall as the rows
-            self.overlay.RemoveViewProp(a)
-        self.props = self.props[1:]
-        self.props.insert(0, self._backdrop(rows * row_h))
+        self._set_rect(backdrop, 0.0, 0.0, 1.0, rows * row_h)
         return rows
 
     def _flow(self, items, first_row: int, size: int, row_h: float) -> int:
@@ -200,6 +199,50 @@ class Controls:
         self.overlay.AddViewProp(actor)
         return actor
 
+    def show_help(self, text: str, on: bool) -> None:
+        """The key list over the middle of the window (``h``), as large as fits."""
+        from ._vtk import pv, vtkTextActor
+        from .scene_view import FONT, fit_font, pt
+
+        if getattr(self, "_help", None) is not None:
+            self.overlay.RemoveViewProp(self._help)
+            self._help = None
+        if not on:
+            return
+        from .scene_view import text_extent
+
+        w, h = self.p.window_size
+        size = fit_font(text, pt(FONT), (0.9 * w, 0.85 * h), mono=True)
+        tw, th = text_extent(text, size, mono=True)
+        a = vtkTextActor()
+        a.SetInput(text)
+        a.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+        # left-justified lines (the key column stays a column), the block centred
+        a.GetPositionCoordinate().SetValue(0.5 - 0.5 * tw / w, 0.5 + 0.5 * th / h)
+        prop = a.GetTextProperty()
+        prop.SetFontFamilyToCourier()
+        prop.SetFontSize(size)
+        prop.SetColor(*pv.Color("#111111").float_rgb)
+        prop.SetBackgroundColor(1.0, 1.0, 1.0)
+        prop.SetBackgroundOpacity(0.96)
+        prop.SetFrame(True)
+        prop.SetFrameColor(0.2, 0.2, 0.2)
+        prop.SetFrameWidth(2)
+        prop.SetJustificationToLeft()
+        prop.SetVerticalJustificationToTop()
+        self.overlay.AddViewProp(a)
+        self._help = a
+
+    @staticmethod
+    def _set_rect(actor, x0: float, y0: float, x1: float, y1: float) -> None:
+        """Move a backdrop to ``(x0, y0)-(x1, y1)`` (normalised window coordinates)."""
+        poly = actor.GetMapper().GetInput()
+        pts = poly.GetPoints()
+        for i, (x, y) in enumerate(((x0, y0), (x1, y0), (x1, y1), (x0, y1))):
+            pts.SetPoint(i, x, y, 0.0)
+        pts.Modified()
+        poly.Modified()
+
     def rects(self) -> list:
         """``(action, (x0, y0, x1, y1))`` display rectangles of every button and chip."""
         out = []
@@ -235,6 +278,8 @@ class Controls:
                  ("g", "HG g", RANGES["g"], params.g, "%.2f"),
                  ("photons", "log2 N", tuple(math.log2(v) for v in RANGES["photons"]),
                   math.log2(params.photons), "%.1f")]
+        # The block's backdrop before the sliders: the overlay draws its props in order.
+        self._slider_backdrop = self._backdrop(0.0)
         for key, title, rng, value, fmt in specs:
             self.sliders[key] = self._slider(key, title, rng, value, fmt)
         self.show_sliders(self.sliders_on)
@@ -244,9 +289,7 @@ class Controls:
         two columns, two rows, on a white backdrop."""
         if rect is None or not self.sliders:
             return
-        if getattr(self, "_slider_backdrop", None) is not None:
-            self.overlay.RemoveViewProp(self._slider_backdrop)
-        self._slider_backdrop = self._backdrop(rect.y1 - rect.y0, rect.y0, rect.x0, rect.x1)
+        self._set_rect(self._slider_backdrop, rect.x0, rect.y0, rect.x1, rect.y1)
         self._slider_backdrop.SetVisibility(self.sliders_on)
         w, h = rect.x1 - rect.x0, rect.y1 - rect.y0
         for i, key in enumerate(("sigma_s", "sigma_a", "g", "photons")):
@@ -256,6 +299,8 @@ class Controls:
             rep = self.sliders[key].GetRepresentation()
             rep.GetPoint1Coordinate().SetValue(x, y)
             rep.GetPoint2Coordinate().SetValue(x + 0.38 * w, y)
+            rep.Modified()
+            rep.BuildRepresentation()
 
     def show_sliders(self, on: bool) -> None:
         """Show or hide the slider block (hidden, it takes no clicks)."""

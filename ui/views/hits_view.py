@@ -213,11 +213,10 @@ def add_hit_primitives(plotter: pv.Plotter, inspection, rows, *, legend: bool = 
 
 
 def path_frame(recon: dict, scene) -> tuple:
-    """``(centre, radius)`` of the reconstructed path (light .. x0) and its hit on the ray."""
+    """``(centre, radius)`` of the reconstructed path (light .. x0, its hit on the ray); the
+    photon's own sampled vertices are left out (traced as in an infinite medium, they may lie
+    far outside the box)."""
     pts = np.asarray(recon["polyline"], dtype=float)[:-1]
-    own = np.asarray(recon.get("photon_polyline", np.zeros((0, 3))), dtype=float)
-    if len(own):
-        pts = np.vstack([pts, own])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre = 0.5 * (lo + hi)
     radius = max(float(np.linalg.norm(pts - centre, axis=1).max()), 6.0 * scale_of(scene))

@@ -33,6 +33,7 @@ from .window import (
     CELL_3D,
     CELL_RENDER,
     CELL_VARIANCE,
+    HELP,
     ViewState,
     accept_results,
     attach_progressive,
@@ -116,6 +117,7 @@ class App:
         self._size = tuple(plotter.window_size)
         self._busy_shown = 0.0
         self._t0 = time.perf_counter()
+        self.scripted, self._said = False, ""
 
     @property
     def members(self) -> tuple:
@@ -208,6 +210,7 @@ class App:
             compose(self.p, self.s, keep_camera=keep_camera)
             if self.controls is not None and self.s.layout is not None:
                 self.controls.place_sliders(self.s.layout.sliders)
+                self.controls.show_help(HELP, self.s.show_help)
         finally:
             self.p.suppress_rendering = held
         self.p.render()
@@ -615,6 +618,10 @@ class App:
             self.redraw()
         if self.script:
             play_step(self, self.script.pop(0))
+            self.scripted = True
+        if self.scripted and self.s.message != self._said:  # a script's log of the status line
+            self._said = self.s.message
+            print(f"window: message: {self._said}", flush=True)
         params = self.pending.due(self.clock())
         if params is not None:
             self.apply_params(params)

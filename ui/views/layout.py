@@ -161,7 +161,9 @@ def window_layout(size, *, focus: str = "split", footer_rows: int = 2,
     # Stage panel: its lines (mono, 1.2 line height) and a message line, capped; under the
     # 3D view when its lines fit the left column, else across the window.
     text_px = TEXT_PT * s
-    wide = max(int(panel_chars), 1) * MONO_ADVANCE * text_px * PANEL_SHRINK > 0.96 * left * w
+    wide = (focus != "images"  # images large: the stage panel stays in the narrow column
+            and max(int(panel_chars), 1) * MONO_ADVANCE * text_px * PANEL_SHRINK
+            > 0.96 * left * w)
     panel_px = (1.2 * text_px * (max(int(panel_lines), 1) + 1) + 16)
     avail = top - foot
     panel_h = min(panel_px / h, PANEL_MAX * avail * (0.75 if wide else 1.0))

@@ -95,16 +95,15 @@ def compose_state(plotter, state: LectureState, view, index: int, *,
     plotter.suppress_rendering = True
     try:
         view.hint = f"{index + 1}/{len(STATES)}  (tutorial {state.tutorial})  <- ->"
-        if view.show_help:
-            view.show_help = False  # the lecture's own help, below
-            compose(plotter, view, keep_camera=keep_camera)
-            view.show_help = True
-        else:
-            compose(plotter, view, keep_camera=keep_camera)
+        compose(plotter, view, keep_camera=keep_camera)
         plotter.subplot(0, 0)
         if view.show_help:
+            x0, y0, x1, y1 = plotter.renderer.GetViewport()
+            box = (0.9 * (x1 - x0) * plotter.window_size[0],
+                   0.9 * (y1 - y0) * plotter.window_size[1])
+            size = scene_view.fit_font(HELP, scene_view.pt(scene_view.FONT), box, mono=True)
             scene_view.add_text(plotter, HELP, 0.04, 0.95, scene_view.FONT, mono=True,
-                                box=True, name="help")
+                                box=True, name="help", size_px=size)
     finally:
         plotter.suppress_rendering = suppressed
 

@@ -370,14 +370,17 @@ def compose_title(plotter: pv.Plotter, state: ViewState) -> None:
     w, h = _viewport_px(plotter, CELL_TITLE)
     n = stage_index(state.stage) + 1
     hint = state.hint or f"stage {n}/{len(STAGES)}   n / p: step   h: help"
-    hint_px = pt(FONT_SMALL)
-    hw = scene_view.text_extent(hint, hint_px)[0]
+    hw = scene_view.text_extent(hint, pt(FONT_SMALL))[0]
     title_px = fit_font(state.stepper.title, pt(FONT_TITLE), (0.97 * w - hw - 20, h),
                         bold=True)
+    with_hint = title_px >= 0.7 * pt(FONT_TITLE)
+    if not with_hint:  # a narrow column: the title first (the stage number is in it)
+        title_px = fit_font(state.stepper.title, pt(FONT_TITLE), (0.97 * w, h), bold=True)
     add_text(plotter, state.stepper.title, 0.015, 0.97, FONT_SMALL, size_px=title_px,
              bold=True, name="title")
-    add_text(plotter, hint, 0.985, 0.97, FONT_SMALL, name="stage-hint", colour="#555555",
-             align="right")
+    if with_hint:
+        add_text(plotter, hint, 0.985, 0.97, FONT_SMALL, name="stage-hint",
+                 colour="#555555", align="right")
     cap_px = pt(CAPTION_PT)
     room = (0.97 * w, h - 1.35 * title_px - 12)
     text = wrap_to(state.stepper.caption, room[0], cap_px)
@@ -473,11 +476,6 @@ def compose(plotter: pv.Plotter, state: ViewState, *, keep_camera: bool = False)
     _compose_3d(plotter, state, camera=cam_pos)
     plotter.camera_position = cam_pos
     plotter.renderer.ResetCameraClippingRange()
-    if state.show_help:
-        w, h = _viewport_px(plotter, CELL_3D)
-        size = fit_font(HELP, pt(FONT_SMALL), (0.9 * w, 0.9 * h), mono=True)
-        add_text(plotter, HELP, 0.03, 0.97, FONT_SMALL, size_px=size, mono=True,
-                 box=True, name="help")
     compose_images(plotter, state)
     compose_panel(plotter, state, text)
 
