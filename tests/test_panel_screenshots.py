@@ -134,9 +134,12 @@ def test_panel_view_updates_in_place_and_rebuilds_after_a_clear():
         prog.run(passes=3)
         assert draw_image_panels(pl, [(0, 0), (0, 1)], prog, "render", (3, 4), view) is view
         assert view._parts["ip1"]["tiles"][0][0] is grid  # same actors, new values
-        expected = np.clip(prog.runs[0].acc.variance.mean(axis=-1) / 3,
-                           *view_clim(view))[::-1].ravel()
-        np.testing.assert_allclose(np.asarray(grid.cell_data["values"]), expected)
+        from ui.views.image_panels import Tile, tile_rgb
+
+        want = tile_rgb(Tile("", values=prog.runs[0].acc.variance.mean(axis=-1) / 3,
+                             clim=view_clim(view)))
+        np.testing.assert_array_equal(np.asarray(grid.point_data["rgb"]),
+                                      want[::-1].reshape(-1, 3))
         pl.renderer.clear_actors()  # what the window's compose() does to its cells
         for title in list(pl.scalar_bars.keys()):
             pl.remove_scalar_bar(title)
@@ -149,7 +152,7 @@ def test_panel_view_updates_in_place_and_rebuilds_after_a_clear():
 
 
 def view_clim(view):
-    actor = view._parts["ip1"]["tiles"][0][1]
+    actor = view._parts["ip1"]["bar_actor"]  # the colour bar's lookup table: the maps' range
     return actor.mapper.GetScalarRange()
 
 

@@ -105,19 +105,34 @@ def pixel_centre(pixel_xy, height: int, origin=(0.0, 0.0), spacing: float = 1.0)
             origin[1] + (height - pixel_xy[1] - 0.5) * spacing)
 
 
+#: Field-data array of a textured image tile (``ui.views.image_panels.PanelView``): origin x,
+#: origin y, spacing (viewport pixels per image pixel), width, height.
+TILE_FIELD = "psurf_tile"
+
+
 def image_tiles(renderer, width: int, height: int) -> list:
-    """``(name, origin (x, y), spacing)`` of every ``width x height`` image (one cell per
-    pixel) drawn in ``renderer``, by actor name."""
+    """``(name, origin (x, y), spacing)`` of every ``width x height`` image drawn in
+    ``renderer`` (one cell per pixel, or a textured tile that says where it is), by actor
+    name."""
     from ._vtk import vtkImageData
 
     out = []
     for name, actor in sorted(renderer.actors.items()):
         mapper = actor.GetMapper() if hasattr(actor, "GetMapper") else None
         data = mapper.GetInput() if mapper is not None else None
+        if data is None:
+            continue
         if isinstance(data, vtkImageData) and tuple(data.GetDimensions()) == (
                 width + 1, height + 1, 1):
             ox, oy, _ = data.GetOrigin()
             out.append((name, (ox, oy), float(data.GetSpacing()[0])))
+            continue
+        field = data.GetFieldData().GetArray(TILE_FIELD) if hasattr(data, "GetFieldData") \
+            else None
+        if field is not None and field.GetNumberOfTuples() * field.GetNumberOfComponents() == 5:
+            ox, oy, sp, w, h = (field.GetValue(i) for i in range(5))
+            if (int(w), int(h)) == (width, height):
+                out.append((name, (ox, oy), float(sp)))
     return out
 
 

@@ -8,6 +8,8 @@ spanning ``[X, X+1] x [H-Y-1, H-Y]``.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from psurf_core import images as im
@@ -160,7 +162,9 @@ def _label(plotter, text: str, x: float, y: float, size_px: int, *, name: str,
 def _outline_points(pixel_xy, height: int, s: float, x0: float, y0: float) -> np.ndarray:
     """(4, 3) corners of the outline of pixel ``pixel_xy`` on a tile at ``(x0, y0)`` drawn
     ``s`` viewport pixels per image pixel."""
-    pts = np.array(pixel_outline(pixel_xy, height, 0.6).points, dtype=float)
+    # at least a few screen pixels around it: a 160x120 render's pixel is ~2 pixels wide
+    pts = np.array(pixel_outline(pixel_xy, height, max(0.6, px(4) / max(s, 1e-6))).points,
+                   dtype=float)
     return pts * [s, s, 1.0] + [x0, y0, 0.0]
 
 
@@ -213,6 +217,55 @@ def _grid_shape(n: int, w: int, h: int, vw: float, vh: float, label_px: float,
         if best is None or s > best[2]:
             best = (r, c, s)
     return best
+
+
+@functools.lru_cache(maxsize=8)
+def _lut(cmap: str) -> np.ndarray:
+    """(256, 3) uint8 colours of a matplotlib colour map."""
+    from matplotlib import colormaps
+
+    return np.round(colormaps[cmap](np.linspace(0.0, 1.0, 256))[:, :3] * 255).astype(np.uint8)
+
+
+def tile_rgb(tile: Tile) -> np.ndarray:
+    """(H, W, 3) uint8 picture of a tile: its ``rgb``, or its ``values`` in false colour
+    (clipped to ``clim``, log scale when ``log``, as its colour bar shows them)."""
+    if tile.rgb is not None:
+        return tile.rgb
+    lo, hi = (float(v) for v in tile.clim)
+    v = np.where(np.isfinite(tile.values), tile.values, lo)
+    v = np.clip(v, lo, hi)
+    if tile.log:
+        lo, hi = np.log10(max(lo, 1e-300)), np.log10(max(hi, 1e-300))
+        v = np.log10(np.maximum(v, 1e-300))
+    t = (v - lo) / (hi - lo) if hi > lo else np.zeros_like(v)
+    return _lut(tile.cmap)[np.clip(np.round(t * 255), 0, 255).astype(np.int64)]
+
+
+def _tile_actor(plotter, tile: Tile, name: str, origin, s: float, hw):
+    """A tile as one textured quad at ``origin`` (viewport pixels), ``s`` pixels per image
+    pixel, nearest-neighbour sampled: a tenth of the drawing cost of one quad per pixel in
+    software OpenGL. Its field data say where it is (``controls.image_tiles``: picking).
+
+    Returns ``(image, actor)``; the image's ``rgb`` is updated in place frame after frame.
+    """
+    from .controls import TILE_FIELD
+
+    h, w = hw
+    x0, y0 = origin
+    img = pv.ImageData(dimensions=(w, h, 1))
+    img.point_data["rgb"] = tile_rgb(tile)[::-1].reshape(h * w, 3)
+    tex = pv.Texture(img)
+    tex.interpolate = False
+    x1, y1 = x0 + w * s, y0 + h * s
+    quad = pv.PolyData(np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]]),
+                       faces=np.array([4, 0, 1, 2, 3]))
+    quad.active_texture_coordinates = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0],
+                                                [0.0, 1.0]])
+    quad.field_data[TILE_FIELD] = np.array([x0, y0, s, w, h], dtype=float)
+    actor = plotter.add_mesh(quad, texture=tex, lighting=False, show_scalar_bar=False,
+                             name=name, reset_camera=False)
+    return tex.GetInput() if tex.GetInput() is not None else img, actor
 
 
 class PanelView:
@@ -306,23 +359,18 @@ class PanelView:
         # in-place update: values, ranges, texts
         parts["header"].SetInput(header)
         parts["header"].GetTextProperty().SetFontSize(header_size)
-        for tile, (grid, actor, text), (title, tsize) in zip(area.tiles, parts["tiles"], fitted,
+        for tile, (img, _actor, text), (title, tsize) in zip(area.tiles, parts["tiles"], fitted,
                                                              strict=True):
             text.SetInput(title)
             text.GetTextProperty().SetFontSize(tsize)
-            arr = grid.cell_data["rgb" if tile.rgb is not None else "values"]
-            if tile.rgb is not None:
-                arr[:] = tile.rgb[::-1].reshape(h * w, 3)
-            else:
-                lo, hi = tile.clim
-                v = np.where(np.isfinite(tile.values), tile.values, lo)
-                arr[:] = np.clip(v, lo, hi)[::-1].ravel()
-                actor.mapper.SetScalarRange(lo, hi)
-                actor.mapper.lookup_table.SetRange(lo, hi)
-            grid.Modified()
+            img.point_data["rgb"][:] = tile_rgb(tile)[::-1].reshape(h * w, 3)
+            img.Modified()
         if parts["bar"] is not None and area.bar is not None:
-            bar = plotter.scalar_bars[parts["bar"]]
-            bar.SetTitle(area.bar)
+            lo, hi = next(t.clim for t in area.tiles if t.values is not None)
+            keyed = parts["bar_actor"]
+            keyed.mapper.SetScalarRange(lo, hi)
+            keyed.mapper.lookup_table.SetRange(lo, hi)
+            plotter.scalar_bars[parts["bar"]].SetTitle(area.bar)
         if pixel_xy is not None:  # a moved pixel moves the outlines (no rebuild)
             for mesh, (x0, y0, sc) in parts["outlines"]:
                 mesh.points = _outline_points(pixel_xy, h, sc, x0, y0)
@@ -355,37 +403,33 @@ class PanelView:
         # the grid centred between the header and the colour bar
         spare = max(vh - top_px - bottom_px - rows * row_h, 0.0)
         top_px = top_px + 0.5 * spare
-        bar_done = False
+        bar_done, bar_actor = False, None
         bar_key = f"{area.bar}#{tag}" if area.bar else None  # bars are keyed by title
         for i, tile in enumerate(area.tiles):
             r, c = divmod(i, cols)
             px0 = x_start + c * (w * s + gap_x)
             py_top = vh - top_px - r * row_h  # top of this row's label (pixels from bottom)
             py0 = py_top - label_px - h * s
-            grid = pv.ImageData(dimensions=(w + 1, h + 1, 1), spacing=(s, s, 1.0),
-                                origin=(px0, py0, 0.0))
             name = f"{tag}-tile{i}"
-            if tile.rgb is not None:
-                grid.cell_data["rgb"] = tile.rgb[::-1].reshape(h * w, 3)
-                actor = plotter.add_mesh(grid, scalars="rgb", rgb=True, lighting=False,
-                                         show_scalar_bar=False, name=name, reset_camera=False)
-            else:
+            img, actor = _tile_actor(plotter, tile, name, (px0, py0), s, (h, w))
+            if tile.values is not None and area.bar is not None and not bar_done:
+                # The colour bar of the area's maps: a hidden mesh carries its lookup table.
                 lo, hi = tile.clim
-                grid.cell_data["values"] = np.clip(
-                    np.where(np.isfinite(tile.values), tile.values, lo), lo, hi)[::-1].ravel()
-                show_bar = area.bar is not None and not bar_done
                 bar = dict(title=bar_key, title_font_size=pt(FONT_SMALL),
                            label_font_size=pt(FONT_SMALL), n_labels=3,
                            fmt="%.0e" if tile.log else "%.1f", color="black", vertical=False,
                            position_x=0.1, position_y=0.02,
                            width=0.8, height=min(0.13, 0.9 * bottom_px / vh))
-                actor = plotter.add_mesh(grid, scalars="values", cmap=tile.cmap,
-                                         log_scale=tile.log, clim=(lo, hi), lighting=False,
-                                         show_scalar_bar=show_bar, scalar_bar_args=bar,
-                                         name=name, reset_camera=False)
-                if show_bar:
-                    plotter.scalar_bars[bar_key].SetTitle(area.bar)
-                bar_done = bar_done or show_bar
+                carrier = pv.PolyData(np.zeros((2, 3)))
+                carrier.point_data["values"] = np.array([lo, hi])
+                bar_actor = plotter.add_mesh(carrier, scalars="values", cmap=tile.cmap,
+                                             log_scale=tile.log, clim=(lo, hi),
+                                             show_scalar_bar=True, scalar_bar_args=bar,
+                                             name=f"{tag}-barmesh", reset_camera=False)
+                bar_actor.SetVisibility(False)
+                names.append(f"{tag}-barmesh")
+                plotter.scalar_bars[bar_key].SetTitle(area.bar)
+                bar_done = True
             names.append(name)
             text = _label(plotter, tile.title, (px0 + w * s / 2) / vw, py_top / vh,
                           pt(FONT_SMALL), name=f"{name}-title", align="center",
@@ -407,7 +451,7 @@ class PanelView:
                 plotter.add_mesh(outline, color=OKABE_ITO["vermillion"], line_width=px(3),
                                  name=f"{name}-pixel", reset_camera=False)
                 names.append(f"{name}-pixel")
-            tiles.append((grid, actor, text))
+            tiles.append((img, actor, text))
         # World units are the viewport's pixels, so the camera depends on the viewport size
         # only. Moving the camera of a lower subplot while its actors were being replaced
         # left it blank (pyvista 0.49 / VTK, EGL): set it after the actors, and only when
@@ -424,7 +468,8 @@ class PanelView:
             cam.parallel_scale = view[2]
         ren.ResetCameraClippingRange()
         return {"header": header, "tiles": tiles, "names": names, "outlines": outlines,
-                "bar": bar_key if bar_done else None}
+                "bar": bar_key if bar_done else None,
+                "bar_actor": bar_actor if bar_done else None}
 
 
 def draw_image_panels(plotter: pv.Plotter, subplots, source, mode: str = "render",

@@ -315,8 +315,16 @@ def _bounds_boxes(prims, idx) -> pv.PolyData:
     return out
 
 
+#: Meshes of recently drawn primitives (stepping through the stages draws the same ones again;
+#: building and clipping them is most of a stage's drawing time). Keyed by the primitives'
+#: identity, which each entry keeps alive so the key stays valid.
+_MESHES: dict = {}
+MESH_CACHE = 48
+
+
 def primitive_mesh(tech, prims, idx, scene, radius: float):
-    """Geometry of primitives ``idx`` of ``tech``, clipped to the medium box.
+    """Geometry of primitives ``idx`` of ``tech``, clipped to the medium box (a copy the caller
+    may add arrays to; recently built ones are reused).
 
     Returns
     -------
@@ -327,6 +335,18 @@ def primitive_mesh(tech, prims, idx, scene, radius: float):
     idx = np.asarray(idx, dtype=np.int64)
     if idx.size == 0:
         return pv.PolyData(), "surface"
+    key = (id(prims), id(scene), tech.name, float(radius), idx.tobytes())
+    hit = _MESHES.get(key)
+    if hit is None:
+        mesh, how = _primitive_mesh(tech, prims, idx, scene, radius)
+        if len(_MESHES) >= MESH_CACHE:
+            _MESHES.pop(next(iter(_MESHES)))
+        _MESHES[key] = hit = (mesh, how, prims, scene)
+    mesh, how = hit[0], hit[1]
+    return mesh.copy(deep=False), how
+
+
+def _primitive_mesh(tech, prims, idx: np.ndarray, scene, radius: float):
     try:
         mesh = _draw_family(tech, prims, idx, scene, radius)
     except (KeyError, IndexError, ValueError):

@@ -9,6 +9,8 @@ expose.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from psurf_core.camera import pixel_directions
@@ -99,10 +101,8 @@ def add_text(plotter, text: str, x: float, y: float, size: float, *, mono: bool 
     return actor
 
 
-def text_extent(text: str, size_px: int, *, mono: bool = False,
-                bold: bool = False) -> tuple[int, int]:
-    """``(width, height)`` in pixels of ``text`` (one or more lines) at ``size_px`` points,
-    as VTK's FreeType renderer draws it (Arial, or Courier when ``mono``)."""
+@functools.lru_cache(maxsize=4096)
+def _measure(text: str, size_px: int, mono: bool, bold: bool) -> tuple[int, int]:
     from ._vtk import vtkTextProperty
 
     prop = vtkTextProperty()
@@ -121,22 +121,47 @@ def text_extent(text: str, size_px: int, *, mono: bool = False,
     return bb[1] - bb[0], bb[3] - bb[2]
 
 
+def text_extent(text: str, size_px: int, *, mono: bool = False,
+                bold: bool = False) -> tuple[int, int]:
+    """``(width, height)`` in pixels of ``text`` (one or more lines) at ``size_px`` points,
+    as VTK's FreeType renderer draws it (Arial, or Courier when ``mono``).
+
+    Monospace text is measured from one line of its font (its advance and line height, once
+    per size): the stage panel's text changes every frame, and measuring all of it with
+    FreeType took tens of milliseconds each time.
+    """
+    size_px = int(size_px)
+    if mono:
+        lines = text.split("\n") if text else [""]
+        one_w, one_h = _measure("M" * 40, size_px, True, bool(bold))
+        two_h = _measure("M\nM", size_px, True, bool(bold))[1]
+        step = two_h - one_h
+        return (int(np.ceil(one_w / 40.0 * max(len(s) for s in lines))),
+                one_h + step * (len(lines) - 1))
+    return _measure(text, size_px, False, bool(bold))
+
+
 def fit_font(text: str, size_px: int, box_px: tuple, *, mono: bool = False,
              bold: bool = False, minimum: int = 7) -> int:
     """The largest font size ``<= size_px`` at which ``text`` fits ``box_px = (width,
     height)`` (pixels; ``minimum`` at least)."""
-    size = int(size_px)
-    w, h = text_extent(text, size, mono=mono, bold=bold)
-    if w <= box_px[0] and h <= box_px[1]:
-        return size
-    ratio = min(box_px[0] / max(w, 1), box_px[1] / max(h, 1))
-    size = max(int(size * ratio), minimum)
-    while size > minimum:
+    lo, hi = int(minimum), int(size_px)
+    if hi <= lo:
+        return max(hi, 1)
+
+    def fits(size: int) -> bool:
         w, h = text_extent(text, size, mono=mono, bold=bold)
-        if w <= box_px[0] and h <= box_px[1]:
-            break
-        size -= 1
-    return size
+        return w <= box_px[0] and h <= box_px[1]
+
+    if fits(hi):
+        return hi
+    while hi - lo > 1:  # fits(lo) assumed (the minimum), not fits(hi)
+        mid = (lo + hi) // 2
+        if fits(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 def wrap_to(text: str, width_px: float, size_px: int, *, bold: bool = False) -> str:

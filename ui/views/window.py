@@ -148,6 +148,9 @@ class ViewState:
     framed: tuple | None = None
     camera_pin: tuple | None = None
     layout: object = None
+    #: The 3D scene's actors (kept while only the stage changes) and what they show.
+    scene_actors: set = field(default_factory=set)
+    scene_key: tuple | None = None
 
     @property
     def stage(self) -> str:
@@ -391,13 +394,18 @@ def compose_title(plotter: pv.Plotter, state: ViewState) -> None:
     add_text(plotter, text, 0.015, top, FONT_SMALL, size_px=cap_px, name="caption")
 
 
-def _compose_3d(plotter: pv.Plotter, state: ViewState, camera=None) -> None:
-    """The 3D view of the stage (labels are placed for ``camera``, the view it will have)."""
+def _compose_3d(plotter: pv.Plotter, state: ViewState, camera=None,
+                with_scene: bool = True) -> None:
+    """The 3D view of the stage (labels are placed for ``camera``, the view it will have;
+    ``with_scene=False``: the scene's actors are there already)."""
     ins = state.inspection
     scene = state.scene
     stage = state.stage
-    scene_view.add_scene(plotter, scene, pixel_xy=state.pixel_xy,
-                         labels=(stage != "reconstruct"))
+    if with_scene:
+        before = set(plotter.renderer.actors)
+        scene_view.add_scene(plotter, scene, pixel_xy=state.pixel_xy,
+                             labels=(stage != "reconstruct"))
+        state.scene_actors = set(plotter.renderer.actors) - before
     if ins is None:
         add_text(plotter, "computing...", 0.5, 0.97, FONT, name="computing", align="center",
                  colour="#444444")
@@ -470,10 +478,21 @@ def compose(plotter: pv.Plotter, state: ViewState, *, keep_camera: bool = False)
         cam_pos = home
     state.framed = key
     cam_pos = [tuple(map(float, v)) for v in cam_pos]
-    plotter.renderer.clear_actors()
-    _clear_bars(plotter)
-    plotter.renderer.set_background(scene_view.BACKGROUND)
-    _compose_3d(plotter, state, camera=cam_pos)
+    ren = plotter.renderer
+    _clear_bars(plotter, ren)
+    # The scene (box, lights, occluders, camera) stays when only the stage changed.
+    key3d = (id(state.scene), state.pixel_xy, state.stage != "reconstruct")
+    reuse = (state.scene_key == key3d and bool(state.scene_actors)
+             and all(n in ren.actors for n in state.scene_actors))
+    if reuse:
+        for name in [n for n in ren.actors if n not in state.scene_actors]:
+            if name in ren.actors:
+                plotter.remove_actor(name, render=False)
+    else:
+        ren.clear_actors()
+    ren.set_background(scene_view.BACKGROUND)
+    _compose_3d(plotter, state, camera=cam_pos, with_scene=not reuse)
+    state.scene_key = key3d
     plotter.camera_position = cam_pos
     plotter.renderer.ResetCameraClippingRange()
     compose_images(plotter, state)
@@ -505,9 +524,11 @@ def compose_panel(plotter: pv.Plotter, state: ViewState, text: str | None = None
     return True
 
 
-def _clear_bars(plotter: pv.Plotter) -> None:
+def _clear_bars(plotter: pv.Plotter, renderer) -> None:
+    """Remove the colour bars drawn in ``renderer`` (the image panels keep theirs)."""
     for title in list(plotter.scalar_bars.keys()):
-        plotter.remove_scalar_bar(title)
+        if renderer.HasViewProp(plotter.scalar_bars[title]):
+            plotter.remove_scalar_bar(title)
 
 
 def compose_images(plotter: pv.Plotter, state: ViewState) -> None:
