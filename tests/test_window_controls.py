@@ -134,7 +134,7 @@ def test_debouncer_applies_the_last_value_once_quiet():
 
 
 def test_coverage_mesh_outline():
-    from ui.views.primitives_view import coverage_mesh
+    from ui.views.coverage_view import coverage_mesh
 
     m = np.zeros((4, 5), bool)
     m[1, 1:3] = True  # two pixels side by side: 6 outline edges, 2 cells

@@ -229,7 +229,7 @@ def _headless(scene_path: str, scene, specs: list, ref, args) -> int:
     out = args.out
     gif = Animation(os.path.join(out, "convergence.gif"), ".gif", fps=4.0)
     figures = image_panels.FigureMaker(GIF_SIZE)
-    scale = image_panels.VarScale()
+    scale = image_panels.VarScale(keys=False)
     written = []
     try:
         print(f"demo: {os.path.basename(scene_path)} ({scene.camera.width}x"

@@ -14,10 +14,14 @@ module                     owns
 :mod:`.scene_view`         medium box, lights, occluders, camera; fonts, measured text
 :mod:`.primitives_view`    photon subpaths and the primitives of each family
 :mod:`.hits_view`          the query ray, its hits and the reconstructed paths
-:mod:`.image_panels`       the image panels drawn (render / variance / modes), figures
-:mod:`.window`             the window's state and what it shows; :func:`~.window.screenshot`
-:mod:`.footer`             the window's chips, buttons and sliders (an overlay)
-:mod:`.interactive`        the on-screen window: keys, mouse, timer
+:mod:`.coverage_view`      the pixels a primitive reaches, tinted on the render tile
+:mod:`.panel_view`         the image panels' tiles, drawn and updated in place
+:mod:`.image_panels`       lecture mode's single panels; figures of the panel modes
+:mod:`.compose`            what each part of the window shows for a state
+:mod:`.window`             the window's state and its changes; :func:`~.window.screenshot`
+:mod:`.footer`             the window's chips, buttons, sliders and help (an overlay)
+:mod:`.interactive`        the on-screen window: keys, timer, stages, rendering
+:mod:`.interactive_params` what clicks, estimator chips, members, sliders change; recording
 :mod:`.script`             scripted steps for the window (tests under Xvfb)
 :mod:`.lecture`            lecture mode in the window
 =========================  ==============================================================

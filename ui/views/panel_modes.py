@@ -122,8 +122,9 @@ class VarScale:
     #: Headroom around the first maps' range (log10 decades below and above).
     PAD = (0.5, 0.5)
 
-    def __init__(self, locked: bool = True, clim: tuple | None = None):
+    def __init__(self, locked: bool = True, clim: tuple | None = None, keys: bool = True):
         self.locked = bool(locked)
+        self.keys = bool(keys)  # name the window's key in the bar's title
         self.clim = clim
         self._complete = clim is not None
 
@@ -158,6 +159,8 @@ class VarScale:
 
     @property
     def label(self) -> str:
+        if not self.keys:
+            return "fixed scale" if self.locked else "auto scale"
         return "fixed scale (l: auto)" if self.locked else "auto scale (l: fix)"
 
 
@@ -171,7 +174,7 @@ def _k_of(layout, k) -> int:
 
 
 def _render_areas(ents, reference, clim, scale: VarScale | None, inspected) -> list:
-    from ui.cli.progressive import compare_rows
+    from ui.cli.equal_time import compare_rows
 
     rows = compare_rows(ents, reference)
     means = [e.acc.mean for e in ents]
