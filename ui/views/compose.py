@@ -3,9 +3,10 @@ applied to the renderers, the title and caption, the 3D view of the stage, the s
 the image panels (:func:`compose` draws them all; the window's timer redraws only the image
 panels and the stage panel, :func:`compose_images` and :func:`compose_panel`).
 
-Composition only: nothing here handles an event or waits for a computation (the state holds
-what the background processes computed), so the window (:mod:`ui.views.interactive`), the
-off-screen screenshots and the browser version draw the same pictures.
+Composition only: nothing here handles an event or waits for a computation (the state, a
+:class:`ui.views.window.ViewState`, holds what the background processes computed), so the
+window (:mod:`ui.views.interactive`), the off-screen screenshots and the browser version draw
+the same pictures.
 
 The plotter (:func:`make_plotter`) has five renderers; :data:`CELL_3D` .. :data:`CELL_TITLE`
 are their subplot indices, placed by :func:`ui.views.layout.window_layout` for the window's
@@ -13,8 +14,6 @@ size at every compose.
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,9 +33,6 @@ from .layout import CAPTION_PT, window_layout
 from .scene_view import FONT, FONT_SMALL, FONT_TITLE, add_text, fit_font, pt, wrap_to
 from .stage_text import coverage_target
 from .stepper import DEFAULT_SIZE, STAGES, stage_index
-
-if TYPE_CHECKING:
-    from .window import ViewState
 
 HELP = """keys
   n / p    next / previous stage
@@ -74,7 +70,7 @@ _PARTS = ((CELL_TITLE, "title"), (CELL_3D, "view3d"), (CELL_PANEL, "panel"),
 
 
 
-def _recon(state: ViewState):
+def _recon(state):
     ins = state.inspection
     if ins is None or len(ins.table) == 0:
         return None, None
@@ -83,13 +79,13 @@ def _recon(state: ViewState):
     return reconstruct_hit(ins, int(order[k])), k
 
 
-def panel_text(state: ViewState) -> str:
+def panel_text(state) -> str:
     """The stage panel's text (see :func:`ui.views.stage_text.panel_text`)."""
     recon, k = _recon(state) if state.stage == "reconstruct" else (None, None)
     return stage_text.panel_text(state, recon, k)
 
 
-def state_layout(plotter: pv.Plotter, state: ViewState, text: str):
+def state_layout(plotter: pv.Plotter, state, text: str):
     """The layout of ``state`` in ``plotter``'s window (the panel sized for ``text``)."""
     return window_layout(plotter.window_size, focus=state.focus, footer_rows=state.footer_rows,
                          sliders=state.sliders_on,
@@ -97,7 +93,7 @@ def state_layout(plotter: pv.Plotter, state: ViewState, text: str):
                          caption_chars=state.caption_chars)
 
 
-def apply_layout(plotter: pv.Plotter, state: ViewState, lay) -> None:
+def apply_layout(plotter: pv.Plotter, state, lay) -> None:
     """Place the renderers where ``lay`` says (``state.layout`` remembers it)."""
     parts = lay.parts()
     for cell, part in _PARTS:
@@ -112,7 +108,7 @@ def _viewport_px(plotter, cell) -> tuple:
     return (x1 - x0) * plotter.window_size[0], (y1 - y0) * plotter.window_size[1]
 
 
-def compose_title(plotter: pv.Plotter, state: ViewState) -> None:
+def compose_title(plotter: pv.Plotter, state) -> None:
     """Title (bold), hint (right) and caption (wrapped to the width, shrunk if it must be)."""
     plotter.subplot(*CELL_TITLE)
     plotter.renderer.clear_actors()
@@ -141,7 +137,7 @@ def compose_title(plotter: pv.Plotter, state: ViewState) -> None:
     add_text(plotter, text, 0.015, top, FONT_SMALL, size_px=cap_px, name="caption")
 
 
-def _compose_3d(plotter: pv.Plotter, state: ViewState, camera=None,
+def _compose_3d(plotter: pv.Plotter, state, camera=None,
                 with_scene: bool = True) -> None:
     """The 3D view of the stage (labels are placed for ``camera``, the view it will have;
     ``with_scene=False``: the scene's actors are there already)."""
@@ -195,7 +191,7 @@ def _compose_3d(plotter: pv.Plotter, state: ViewState, camera=None,
                                        list_empty=False)
 
 
-def _home_camera(state: ViewState):
+def _home_camera(state):
     """``(key, camera)``: where the 3D view looks by default at this stage (a pinned camera
     (lecture); Reconstruct: framing the selected hit's path; otherwise the overview)."""
     if state.camera_pin is not None:
@@ -208,7 +204,7 @@ def _home_camera(state: ViewState):
     return ("overview",), scene_view.overview_camera(state.scene)
 
 
-def compose(plotter: pv.Plotter, state: ViewState, *, keep_camera: bool = False) -> None:
+def compose(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None:
     """(Re)draw every part of the window for ``state``.
 
     ``keep_camera`` keeps the 3D view where the user turned it, unless the stage's own view
@@ -246,7 +242,7 @@ def compose(plotter: pv.Plotter, state: ViewState, *, keep_camera: bool = False)
     compose_panel(plotter, state, text)
 
 
-def compose_panel(plotter: pv.Plotter, state: ViewState, text: str | None = None) -> bool:
+def compose_panel(plotter: pv.Plotter, state, text: str | None = None) -> bool:
     """Draw the stage panel (the stage's numbers, fitted to the panel) and the status message.
 
     Returns False when the text needs another layout (more or fewer lines than the panel was
@@ -278,7 +274,7 @@ def _clear_bars(plotter: pv.Plotter, renderer) -> None:
             plotter.remove_scalar_bar(title)
 
 
-def compose_images(plotter: pv.Plotter, state: ViewState) -> None:
+def compose_images(plotter: pv.Plotter, state) -> None:
     """Draw the render and variance panels (the progressive tiles when ``state.prog`` is set,
     else ``state.acc``)."""
     if state.prog is not None:
@@ -304,7 +300,7 @@ def compose_images(plotter: pv.Plotter, state: ViewState) -> None:
     image_panels.add_variance_panel(plotter, var, state.pixel_xy, title, clim=state.var_clim)
 
 
-def _compose_progressive(plotter: pv.Plotter, state: ViewState) -> None:
+def _compose_progressive(plotter: pv.Plotter, state) -> None:
     """The progressive panels (every estimator side by side, or a breakdown mode) and, on the
     inspected estimator's render tile, the coverage overlay."""
     state.panels.draw(plotter, [CELL_RENDER, CELL_VARIANCE], state.prog, state.mode,
