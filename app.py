@@ -1,6 +1,6 @@
 """psurf command line: ``python app.py [demo] [SCENE.toml]`` opens the window (or, headless,
 writes the showcase comparison), ``render``, ``compare``, ``screenshot``, ``record``,
-``breakdown``, ``lecture``.
+``breakdown``, ``lecture``, ``serve`` (the web page).
 
 A thin layer over :mod:`psurf_core` (argument parsing, progress, writing files); the core never
 imports it. Every subcommand lives in :mod:`ui.cli` (``render`` in :mod:`ui.cli.render`,
@@ -16,10 +16,11 @@ import argparse
 import sys
 import textwrap
 
-from ui.cli.common import CliError, Parser, join_negative_values
+from ui.cli.common import CliError, OutputWriteError, Parser, join_negative_values
 from ui.cli.compare import add_compare_parser
 from ui.cli.demo import add_demo_parser
 from ui.cli.lecture import add_lecture_parser
+from ui.cli.parallel import WorkersLost
 from ui.cli.record import add_record_parsers
 from ui.cli.render import (  # noqa: F401 - DEFAULT_* are part of app's interface
     DEFAULT_PASSES,
@@ -29,6 +30,7 @@ from ui.cli.render import (  # noqa: F401 - DEFAULT_* are part of app's interfac
     add_render_parser,
 )
 from ui.cli.screenshot import add_screenshot_parser
+from ui.cli.serve import add_serve_parser
 
 PROG = "psurf"
 
@@ -71,6 +73,8 @@ def build_parser() -> Parser:
                      --out conv.gif [--mode render|techniques|bounces]   image panels
               breakdown SCENE.toml --estimator SPEC --out DIR    per-technique, weight and
                                                                  per-K PNGs of an MIS set
+              serve [SCENE.toml] [--port 8080] [--host H]        the app as a web page, one
+                                                                 session per browser tab
 
             Run 'python app.py render --help' for the render options."""),
         epilog=f"estimators (--estimator NAME):\n{estimators}",
@@ -78,7 +82,7 @@ def build_parser() -> Parser:
     top.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = top.add_subparsers(
         dest="command", parser_class=Parser,
-        metavar="{render,demo,screenshot,compare,lecture,record,breakdown}")
+        metavar="{render,demo,screenshot,compare,lecture,record,breakdown,serve}")
 
     add_render_parser(sub, estimators)  # with --dask/--workers/--jobs
 
@@ -87,6 +91,7 @@ def build_parser() -> Parser:
     add_compare_parser(sub)  # equal-time study
     add_lecture_parser(sub)  # lecture mode: the tutorials' key states
     add_record_parsers(sub)  # record (GIF/MP4), breakdown (MIS PNGs)
+    add_serve_parser(sub)  # the web page (ui.web)
     return top
 
 
@@ -105,13 +110,19 @@ def main(argv: list[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         if getattr(args, "func", None) is None:
-            raise CliError("a subcommand is required: render, demo, screenshot, compare or "
-                           "lecture "
-                           "(see --help)")
+            raise CliError("a subcommand is required: render, demo, screenshot, compare, "
+                           "lecture, record, breakdown or serve (see --help)")
         return args.func(args)
     except (CliError, SceneError) as e:
         print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)
         return 2
+    except (OutputWriteError, WorkersLost) as e:  # a disk or a cluster failed mid-run
+        print(f"{PROG}: error: {' '.join(str(e).split())}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print(f"{PROG}: error: out of memory (lower the resolution, --spp or --photons)",
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted; nothing written", file=sys.stderr)
         return 130

@@ -14,7 +14,8 @@ whose compiled walkers run on numba's threads (on the cores other processes leav
   per wall second of finding and evaluating them;
 * ``cpu_ns_per_hit.<spec>``: CPU nanoseconds (all threads) per evaluated hit, the same
   work; ``hit_cost_ratio``: ``paper-multi``'s over ``planes``';
-* ``photon_vertices_per_second``: Trace.
+* ``photon_vertices_per_second``: Trace alone in render's batches
+  (:func:`benchmarks.stages.trace_rate`; its range and first pass in ``trace``).
 
 Also per technique (:func:`benchmarks.stages.stage_pass`), 1 vs 2 processes, tables per
 doubling of photons and image side, and the peak RSS of a 10^6-photon pass at 256x192
@@ -36,7 +37,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from benchmarks import extras  # noqa: E402
-from benchmarks.stages import steady  # noqa: E402
+from benchmarks.stages import steady, trace_rate  # noqa: E402
 from psurf_core.render import PHOTON_BATCH  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
 
@@ -93,7 +94,11 @@ def main(argv=None) -> int:
                for spec in args.estimators.split(",")}
     for spec, r in results.items():
         _print_run(spec, r)
-    vert = steady(scene, "planes", max(args.photons, 4 * PHOTON_BATCH), args.reps)
+    vert = trace_rate(scene, max(args.photons, 4 * PHOTON_BATCH), args.reps)
+    lo, hi = vert["photon_vertices_per_second_range"]
+    print(f"trace: {vert['photon_vertices_per_second']:.3g} vertices/s (median of "
+          f"{vert['passes']} warm passes x {vert['photons']} photons, {lo:.3g}-{hi:.3g}; "
+          f"first pass {vert['photon_vertices_per_second_first_pass']:.3g})")
     head = {
         "hits_per_second": {k: v["hits_per_second"] for k, v in results.items()},
         "cpu_ns_per_hit": {k: v["cpu_ns_per_hit"] for k, v in results.items()},
@@ -120,7 +125,7 @@ def main(argv=None) -> int:
         "scene": args.scene, "photons": args.photons, "reps": args.reps,
         "headline": head, "targets": {"hits_per_second": TARGETS, "trace": TRACE_TARGET,
                                       "hit_cost_ratio": RATIO_TARGET},
-        "estimators": results,
+        "trace": vert, "estimators": results,
     }
     if args.parallel_passes:
         out["two_process"] = {}

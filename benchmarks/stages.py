@@ -131,3 +131,30 @@ def steady(scene, spec: str, photons: int, reps: int) -> dict:
                                                                            for r in runs])),
                 "each": {k: [r[k] for r in runs] for k in keys}, "last": runs[-1]})
     return out
+
+
+def trace_rate(scene, photons: int, passes: int) -> dict:
+    """Photon vertices traced per second by ``trace`` alone, in render's batches of
+    ``PHOTON_BATCH`` (the previous batch's paths alive while the next is traced, as in a
+    render): the median of ``passes`` warm passes (pass ``i`` seeded as render's pass ``i``),
+    their range, and the first pass after the kernels loaded (cold memory)."""
+    blockers = blockers_of(scene)
+    trace(scene, 64, np.random.default_rng(0), blockers=blockers)  # kernels load from cache
+    rates, verts = [], []
+    for i in range(passes + 1):
+        _, photon_ss = pass_generators(0, i)
+        n_batches = -(-photons // PHOTON_BATCH)
+        secs, nv = 0.0, 0
+        for b, ss in enumerate(photon_ss.spawn(n_batches)):
+            nb = min(PHOTON_BATCH, photons - b * PHOTON_BATCH)
+            a = time.perf_counter()
+            paths = trace(scene, nb, np.random.default_rng(ss), blockers=blockers)
+            secs += time.perf_counter() - a
+            nv += int(paths.alive.sum())
+        rates.append(nv / secs)
+        verts.append(nv)
+    warm = rates[1:]
+    return {"photons": photons, "passes": passes, "vertices_per_pass": int(np.median(verts)),
+            "photon_vertices_per_second": float(np.median(warm)),
+            "photon_vertices_per_second_range": [float(min(warm)), float(max(warm))],
+            "photon_vertices_per_second_first_pass": float(rates[0])}

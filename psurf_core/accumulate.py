@@ -1,8 +1,16 @@
-"""Welford mean and variance across passes, with the exact parallel merge (Chan et al.).
+"""Welford mean and variance across passes, with the exact parallel merge (Chan et al.), plus
+the third and fourth central moments and the largest pass value (Pébay 2008).
 
 The variance is the per-pixel sample variance of *one pass's* estimate across passes, so the
 variance of the mean image is ``var / passes``. Merging accumulators in pass order gives the
 same numbers as one accumulator that saw every pass (resume, distributed passes).
+
+The higher moments say whether that variance can be trusted: a heavy-tailed pixel (a few
+rare, huge passes) has a large skewness and kurtosis, and its sample variance understates
+the error of its mean until the rare passes have been seen often enough
+(:mod:`psurf_core.reliability` turns them into a per-pixel flag). They are updated next to
+``mean`` and ``m2`` without changing a single operation of those two, so images and
+variances stay bit-identical to accumulators that never kept them (older checkpoints).
 """
 
 from __future__ import annotations
@@ -14,22 +22,47 @@ import numpy as np
 
 @dataclass
 class Welford:
-    """Running mean and sum of squared deviations of float64 images.
+    """Running mean and central-moment sums of float64 images.
 
     Attributes
     ----------
     n : int
         Passes seen.
-    mean, m2 : (H, W, C) float64
+    mean : (H, W, C) float64
+        Mean of the passes.
+    m2, m3, m4 : (H, W, C) float64
+        Sums over passes of the 2nd, 3rd and 4th powers of the deviation from ``mean``.
+        ``m3``, ``m4`` (and ``peak``) are ``None`` when unknown: an accumulator restored
+        from a checkpoint written before they were kept. They then stay unknown (they cannot
+        be recovered from ``mean`` and ``m2``), while ``mean`` and ``m2`` go on exactly.
+    peak : (H, W, C) float64 or None
+        The largest pass value seen per pixel (``-inf`` before the first pass).
     """
 
     n: int
     mean: np.ndarray
     m2: np.ndarray
+    m3: np.ndarray | None = None
+    m4: np.ndarray | None = None
+    peak: np.ndarray | None = None
 
     @classmethod
     def empty(cls, shape) -> Welford:
-        return cls(0, np.zeros(shape), np.zeros(shape))
+        return cls(0, np.zeros(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape),
+                   np.full(shape, -np.inf))
+
+    @property
+    def has_tails(self) -> bool:
+        """Whether the higher moments and the peak are known."""
+        return self.m3 is not None and self.m4 is not None and self.peak is not None
+
+    def copy(self) -> Welford:
+        """An independent copy (arrays copied)."""
+        def c(a):
+            return None if a is None else a.copy()
+
+        return Welford(self.n, self.mean.copy(), self.m2.copy(), c(self.m3), c(self.m4),
+                       c(self.peak))
 
     def add(self, x: np.ndarray) -> None:
         """Add one pass's image (non-finite values are a bug upstream and are refused)."""
@@ -39,20 +72,49 @@ class Welford:
         self.n += 1
         delta = x - self.mean
         self.mean += delta / self.n
+        if self.has_tails:
+            # Pébay's one-pass update; m4 and m3 need the old m2 (and m4 the old m3).
+            n = float(self.n)
+            dn = delta / n
+            dn2 = dn * dn
+            term = delta * dn * (n - 1.0)
+            self.m4 += term * dn2 * (n * n - 3.0 * n + 3.0) + 6.0 * dn2 * self.m2 \
+                - 4.0 * dn * self.m3
+            self.m3 += term * dn * (n - 2.0) - 3.0 * dn * self.m2
+            np.maximum(self.peak, x, out=self.peak)
         self.m2 += delta * (x - self.mean)
 
     def merge(self, other: Welford) -> None:
-        """Fold ``other`` (later passes) into this accumulator exactly."""
+        """Fold ``other`` (later passes) into this accumulator exactly.
+
+        The higher moments merge by Pébay's pairwise formulas; they become unknown when
+        either side does not know its own.
+        """
         if other.n == 0:
             return
         if self.n == 0:
-            self.n, self.mean, self.m2 = other.n, other.mean.copy(), other.m2.copy()
+            o = other.copy()
+            self.n, self.mean, self.m2 = o.n, o.mean, o.m2
+            self.m3, self.m4, self.peak = o.m3, o.m4, o.peak
             return
-        n = self.n + other.n
+        na, nb = float(self.n), float(other.n)
+        n = na + nb
         delta = other.mean - self.mean
-        self.mean = self.mean + delta * (other.n / n)
-        self.m2 = self.m2 + other.m2 + delta**2 * (self.n * other.n / n)
-        self.n = n
+        if self.has_tails and other.has_tails:
+            d2 = delta * delta
+            m4 = (self.m4 + other.m4 + d2 * d2 * (na * nb * (na * na - na * nb + nb * nb) / n**3)
+                  + 6.0 * d2 * (na * na * other.m2 + nb * nb * self.m2) / (n * n)
+                  + 4.0 * delta * (na * other.m3 - nb * self.m3) / n)
+            m3 = (self.m3 + other.m3 + d2 * delta * (na * nb * (na - nb) / (n * n))
+                  + 3.0 * delta * (na * other.m2 - nb * self.m2) / n)
+            self.m3, self.m4 = m3, m4
+            self.peak = np.maximum(self.peak, other.peak)
+        else:
+            self.m3 = self.m4 = self.peak = None
+        total = self.n + other.n  # mean and m2 exactly as before the higher moments were kept
+        self.mean = self.mean + delta * (other.n / total)
+        self.m2 = self.m2 + other.m2 + delta**2 * (self.n * other.n / total)
+        self.n = total
 
     @property
     def variance(self) -> np.ndarray:

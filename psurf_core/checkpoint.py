@@ -5,6 +5,10 @@ A checkpoint is one file ``DIR/checkpoint.npz`` (numpy only, no pickle) holding
 * ``n``, ``mean``, ``m2``: the :class:`~psurf_core.accumulate.Welford` accumulator (float64,
   bit-exact), so that continuing at pass ``n`` gives exactly the image an uninterrupted
   render with the same seed gives (pass ``i`` draws from ``SeedSequence([seed, i])``);
+* ``m3``, ``m4``, ``peak`` (format 2): the accumulator's higher moments and largest pass
+  value, which :mod:`psurf_core.reliability` needs; a format-1 checkpoint (written before
+  they were kept) still loads, its accumulator then does not know them
+  (``Welford.has_tails`` is False) and the resumed render's image is the same;
 * ``meta``: a JSON document with the format number, the psurf version, the *identity* of
   the render (:func:`render_identity`: scene file hash, estimator spec, seed and every
   setting that changes the numbers) and bookkeeping (seconds spent, scene path, argv, time).
@@ -26,15 +30,21 @@ import numpy as np
 
 from .accumulate import Welford
 
-__all__ = ["CHECKPOINT_FILE", "FORMAT", "Checkpoint", "CheckpointError", "checkpoint_path",
-           "file_sha256", "identity_differences", "load_checkpoint", "render_identity",
-           "save_checkpoint"]
+__all__ = ["CHECKPOINT_FILE", "FORMAT", "READABLE_FORMATS", "Checkpoint", "CheckpointError",
+           "checkpoint_path", "file_sha256", "identity_differences", "load_checkpoint",
+           "render_identity", "save_checkpoint"]
 
 #: File name inside the checkpoint directory.
 CHECKPOINT_FILE = "checkpoint.npz"
 
-#: Version of the checkpoint layout (bumped when the fields change meaning).
-FORMAT = 1
+#: Version of the checkpoint layout written (bumped when the fields change meaning).
+FORMAT = 2
+
+#: Layouts this psurf reads: 1 (``n``, ``mean``, ``m2``), 2 (also ``m3``, ``m4``, ``peak``).
+READABLE_FORMATS = (1, 2)
+
+#: Arrays of a format-2 checkpoint beside ``n``, ``mean``, ``m2`` (when ``meta["tails"]``).
+_TAIL_KEYS = ("m3", "m4", "peak")
 
 
 class CheckpointError(ValueError):
@@ -97,10 +107,12 @@ def render_identity(scene_file: str, scene, estimator, settings, seed: int) -> d
 
     Notes
     -----
-    Settings an estimator ignores are left out (``photons`` for the reference, the kernel
-    radius for unbiased estimators), so changing them does not block a resume. The memory
-    budget is included: it changes how hits are chunked and so the order of floating-point
-    sums, and a resumed render must be bit-identical to an uninterrupted one.
+    The reference's sampler version (:data:`psurf_core.reference.SAMPLER`) is included, so
+    a checkpoint of an older path tracer is refused. Settings an estimator ignores are left
+    out (``photons`` for the reference, the kernel radius for unbiased estimators), so
+    changing them does not block a resume. The memory budget is included: it changes how
+    hits are chunked and so the order of floating-point sums, and a resumed render must be
+    bit-identical to an uninterrupted one.
     """
     meshes = sorted({lt.source for lt in (*scene.lights, *scene.occluders)
                      if getattr(lt, "source", "") and os.path.isfile(lt.source)})
@@ -115,7 +127,12 @@ def render_identity(scene_file: str, scene, estimator, settings, seed: int) -> d
         "max_scatter": int(scene.max_scatter),
         "memory_budget_mib": int(settings.memory_budget_mib),
     }
-    if not estimator.reference:
+    if estimator.reference:
+        # A checkpoint of another path tracer would resume into a mix of two samplers.
+        from .reference import SAMPLER
+
+        ident["reference_sampler"] = SAMPLER
+    else:
         ident["photons"] = int(settings.photons)
     if estimator.kernel:
         ident["radius"] = None if settings.radius is None else float(settings.radius)
@@ -138,7 +155,8 @@ def save_checkpoint(directory: str | os.PathLike, acc: Welford, identity: dict, 
     directory : path
         Must exist.
     acc : Welford
-        Not modified; ``n``, ``mean`` and ``m2`` are written as they are.
+        Not modified; ``n``, ``mean``, ``m2`` (and ``m3``, ``m4``, ``peak`` when it knows
+        them) are written as they are.
     identity : dict
         :func:`render_identity` of the render.
     seconds : float
@@ -156,20 +174,33 @@ def save_checkpoint(directory: str | os.PathLike, acc: Welford, identity: dict, 
     final = checkpoint_path(directory)
     meta = {"format": FORMAT, "version": version, "passes": int(acc.n),
             "seconds": float(seconds), "written": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-            "identity": identity, **(extra or {})}
+            "tails": bool(acc.has_tails), "identity": identity, **(extra or {})}
+    arrays = {"n": np.int64(acc.n), "mean": np.asarray(acc.mean, dtype=np.float64),
+              "m2": np.asarray(acc.m2, dtype=np.float64)}
+    if acc.has_tails:
+        arrays.update({k: np.asarray(getattr(acc, k), dtype=np.float64) for k in _TAIL_KEYS})
     tmp = os.path.join(os.fspath(directory), f".{CHECKPOINT_FILE}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as f:
-            np.savez(f, n=np.int64(acc.n), mean=np.asarray(acc.mean, dtype=np.float64),
-                     m2=np.asarray(acc.m2, dtype=np.float64), meta=np.str_(json.dumps(meta)))
+            np.savez(f, **arrays, meta=np.str_(json.dumps(meta)))
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, final)
     finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+        _remove_temporary(tmp)
     _fsync_dir(os.fspath(directory))
     return final
+
+
+def _remove_temporary(tmp: str) -> None:
+    """Remove a failed write's temporary file; where that fails too (a read-only mount, the
+    directory gone) the write's own error is the one raised, and the next render in the
+    directory removes the file."""
+    try:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    except OSError:
+        pass
 
 
 def _fsync_dir(directory: str) -> None:
@@ -194,6 +225,11 @@ def load_checkpoint(directory: str | os.PathLike) -> Checkpoint:
     CheckpointError
         One line naming the file: missing, unreadable, not a psurf checkpoint, another
         format, inconsistent arrays.
+
+    Notes
+    -----
+    A format-1 checkpoint loads with ``accumulator.has_tails`` False (see the module
+    docstring).
     """
     directory = os.fspath(directory)
     path = checkpoint_path(directory)
@@ -216,6 +252,8 @@ def load_checkpoint(directory: str | os.PathLike) -> Checkpoint:
                 mean = np.array(d["mean"], dtype=np.float64)
                 m2 = np.array(d["m2"], dtype=np.float64)
                 meta = json.loads(str(d["meta"]))
+                tails = {k: np.array(d[k], dtype=np.float64) for k in _TAIL_KEYS
+                         if k in d.files}
     except CheckpointError:
         raise
     except Exception as e:  # truncated zip, bad JSON, pickled arrays, ...
@@ -223,12 +261,28 @@ def load_checkpoint(directory: str | os.PathLike) -> Checkpoint:
         raise CheckpointError(f"{path}: unreadable checkpoint ({msg})") from None
     if not isinstance(meta, dict) or not isinstance(meta.get("identity"), dict):
         raise CheckpointError(f"{path}: not a psurf checkpoint (no identity in its metadata)")
-    if meta.get("format") != FORMAT:
-        raise CheckpointError(f"{path}: checkpoint format {meta.get('format')!r}, this psurf "
-                              f"reads format {FORMAT}")
+    fmt = meta.get("format")
+    if fmt not in READABLE_FORMATS:
+        raise CheckpointError(f"{path}: checkpoint format {fmt!r}, this psurf reads formats "
+                              f"{', '.join(map(str, READABLE_FORMATS))}")
     if n < 0 or mean.shape != m2.shape or mean.ndim != 3 or mean.shape[-1] != 3:
         raise CheckpointError(f"{path}: inconsistent accumulator (n = {n}, mean "
                               f"{mean.shape}, m2 {m2.shape})")
     if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(m2))):
         raise CheckpointError(f"{path}: accumulator holds non-finite values")
-    return Checkpoint(path, Welford(n, mean, m2), meta)
+    acc = Welford(n, mean, m2)
+    if fmt >= 2 and meta.get("tails"):
+        missing = [k for k in _TAIL_KEYS if k not in tails]
+        if missing:
+            raise CheckpointError(f"{path}: format-2 checkpoint without its "
+                                  f"{', '.join(missing)}")
+        if any(a.shape != mean.shape for a in tails.values()):
+            raise CheckpointError(f"{path}: inconsistent accumulator (m3, m4, peak shapes "
+                                  f"{[a.shape for a in tails.values()]}, mean {mean.shape})")
+        # The peak of no pass is -inf; every other value must be finite.
+        peak_ok = np.all(np.isfinite(tails["peak"])) or (n == 0 and np.all(tails["peak"] < 0))
+        if not (np.all(np.isfinite(tails["m3"])) and np.all(np.isfinite(tails["m4"]))
+                and peak_ok):
+            raise CheckpointError(f"{path}: accumulator holds non-finite values")
+        acc = Welford(n, mean, m2, tails["m3"], tails["m4"], tails["peak"])
+    return Checkpoint(path, acc, meta)

@@ -16,11 +16,18 @@ of N single-threaded worker processes on 127.0.0.1 for the duration of the call.
 Time-budget mode keeps at most ``2 x workers`` passes in flight, stops submitting once
 ``time_budget`` seconds are spent, and lets the passes in flight finish; they are all merged
 (the analogue of "the pass in flight finishes"), so the result is always passes ``0..n-1``.
+
+A worker that dies mid-run loses nothing: the scheduler runs its passes again elsewhere (or
+on the worker its nanny restarts), and since a pass is a pure function of its index the image
+stays bit-identical (``tests/test_worker_loss.py``). What cannot be recovered ends the run
+with :class:`WorkersLostError` (one line): no worker left for :data:`NO_WORKER_TIMEOUT`
+seconds, a pass whose workers died too often (Dask's ``KilledWorker``), or the scheduler gone.
 """
 
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from contextlib import contextmanager
 
@@ -32,14 +39,26 @@ from .parallel import merge_in_pass_order
 from .render import RenderResult, RenderSettings, render_pass, warm_up
 from .scene import Scene
 
-__all__ = ["DistributedError", "cluster_client", "render_distributed"]
+__all__ = ["DistributedError", "WorkersLostError", "cluster_client", "render_distributed"]
 
 #: Seconds to wait for a scheduler (``address``) to answer.
 CONNECT_TIMEOUT = 10.0
 
+#: Seconds a run waits with no worker at all (a nanny's restart or a new worker may come)
+#: before it gives up with :class:`WorkersLostError`.
+NO_WORKER_TIMEOUT = 30.0
+
+#: Seconds between checks for live workers while passes are in flight.
+_POLL = 1.0
+
 
 class DistributedError(RuntimeError):
     """Dask is missing, the scheduler cannot be reached, or its workers cannot run psurf."""
+
+
+class WorkersLostError(DistributedError):
+    """Mid-run, the cluster lost what the run needs: every worker, a pass (with its worker,
+    too often), or the scheduler. The passes merged before it are intact."""
 
 
 def _pass_task(scene: Scene, spec: str, pass_index: int, seed: int,
@@ -144,6 +163,7 @@ def render_distributed(
     accumulator: Welford | None = None,
     on_pass: Callable[[int, Welford, float], bool | None] | None = None,
     max_in_flight: int | None = None,
+    no_worker_timeout: float | None = None,
 ) -> RenderResult:
     """Progressive render whose passes run on Dask workers; the result equals
     :func:`psurf_core.render.render` with the same arguments.
@@ -170,19 +190,24 @@ def render_distributed(
         are cancelled and not merged).
     max_in_flight : int, optional
         Passes submitted but not merged; default ``2 x`` the cluster's worker threads.
+    no_worker_timeout : float, optional
+        Seconds without any worker before giving up (default :data:`NO_WORKER_TIMEOUT`).
 
     Raises
     ------
     DistributedError
         See :func:`cluster_client`. A pass that fails on a worker re-raises its exception.
+    WorkersLostError
+        No worker for ``no_worker_timeout`` seconds, a pass lost with its workers too often,
+        or the scheduler gone; ``accumulator`` (when given) holds the passes merged before.
     """
     if client is None:
         with cluster_client(address, workers) as c:
             return render_distributed(scene, estimator, settings, passes=passes,
                                       time_budget=time_budget, seed=seed, client=c,
                                       accumulator=accumulator, on_pass=on_pass,
-                                      max_in_flight=max_in_flight)
-    from dask.distributed import wait
+                                      max_in_flight=max_in_flight,
+                                      no_worker_timeout=no_worker_timeout)
 
     spec = estimator.spec if isinstance(estimator, Estimator) else str(estimator)
     if passes is None and time_budget is None:
@@ -197,11 +222,67 @@ def render_distributed(
         # Every worker compiles/loads the estimator's compiled kernels before the clock runs.
         client.run(_warm_worker, scene, spec, settings)
 
-    def wait_any(futures):
-        with client.as_current():  # wait() looks for a current client
-            wait(futures, return_when="FIRST_COMPLETED")
+    timeout = NO_WORKER_TIMEOUT if no_worker_timeout is None else float(no_worker_timeout)
+    try:
+        return merge_in_pass_order(
+            lambda i: client.submit(_pass_task, scene_f, spec, i, seed, settings, pure=False),
+            _waiter(client, timeout, acc), acc, window, spec, seed, settings, passes=passes,
+            time_budget=time_budget, on_pass=on_pass)
+    except WorkersLostError:
+        raise
+    except Exception as e:
+        if not _is_loss(e):
+            raise
+        if _live_workers(client) == 0:
+            raise WorkersLostError(f"no Dask worker is left (the passes in flight and the "
+                                   f"scene sent to the workers went with them); {acc.n} "
+                                   f"passes were merged") from None
+        why = " ".join(str(e).split())
+        raise WorkersLostError(f"the cluster lost pass {acc.n} with its workers "
+                               f"({type(e).__name__}: {why[:160]}{'...' if len(why) > 160 else ''}"
+                               f"); {acc.n} passes were merged") from None
 
-    return merge_in_pass_order(
-        lambda i: client.submit(_pass_task, scene_f, spec, i, seed, settings, pure=False),
-        wait_any, acc, window, spec, seed, settings, passes=passes, time_budget=time_budget,
-        on_pass=on_pass)
+
+def _is_loss(e: Exception) -> bool:
+    """A worker or the scheduler gone (not an error of the pass itself)."""
+    from concurrent.futures import CancelledError
+
+    from distributed import KilledWorker
+    from distributed.comm.core import CommClosedError
+
+    return isinstance(e, (KilledWorker, CommClosedError, CancelledError))
+
+
+def _live_workers(client) -> int:
+    try:
+        return len(client.scheduler_info(n_workers=-1).get("workers", {}))
+    except Exception as e:  # the scheduler does not answer
+        raise WorkersLostError(f"lost the Dask scheduler ({type(e).__name__}: "
+                               f"{' '.join(str(e).split())[:200]})") from None
+
+
+def _waiter(client, timeout: float, acc: Welford):
+    """``wait_any(futures)`` for :func:`merge_in_pass_order`: returns when one is done, and
+    raises :class:`WorkersLostError` once the cluster has had no worker for ``timeout``
+    seconds."""
+    from dask.distributed import wait
+
+    def wait_any(futures):
+        alone_since = None
+        while True:
+            try:
+                with client.as_current():  # wait() looks for a current client
+                    wait(futures, timeout=_POLL, return_when="FIRST_COMPLETED")
+                return
+            except TimeoutError:
+                pass
+            if _live_workers(client):
+                alone_since = None
+                continue
+            now = time.monotonic()
+            alone_since = now if alone_since is None else alone_since
+            if now - alone_since >= timeout:
+                raise WorkersLostError(f"no Dask worker is left (none for {timeout:g} s); "
+                                       f"{acc.n} passes were merged")
+
+    return wait_any

@@ -68,7 +68,8 @@ PRESETS: dict = {}
 
 def estimator_help() -> str:
     """One line per estimator name, for ``--help``."""
-    lines = ["reference: volumetric path tracer with NEE + phase-sampling MIS (ground truth)"]
+    lines = ["reference: volumetric path tracer, NEE + emitter hits + equiangular by MIS, "
+             "guided (ground truth)"]
     for name, e in REGISTRY.items():
         suffix = " [-short]" if e.has_short else ""
         lines.append(f"{name}{suffix}: {e.summary}")

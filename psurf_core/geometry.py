@@ -53,8 +53,9 @@ def inside_box(x: np.ndarray, bmin: np.ndarray, bmax: np.ndarray,
 
 @twin(inside_box)
 def _inside_box(x, bmin, bmax, eps=BOX_EPS):
-    return (bmin[0] - eps <= x[0] <= bmax[0] + eps and bmin[1] - eps <= x[1] <= bmax[1] + eps
-            and bmin[2] - eps <= x[2] <= bmax[2] + eps)
+    # & rather than `and`: no branches (Trace's step kernel: ~0.4 ms of ~4 per 32768 photons)
+    return ((bmin[0] - eps <= x[0]) & (x[0] <= bmax[0] + eps) & (bmin[1] - eps <= x[1])
+            & (x[1] <= bmax[1] + eps) & (bmin[2] - eps <= x[2]) & (x[2] <= bmax[2] + eps))
 
 
 def ray_sphere(o, d, center, radius):

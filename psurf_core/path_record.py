@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .kernels.jit import ctrl_c_kept, inline, kernel
+from .kernels.jit import ctrl_c_kept, inline, kernel, twin
 from .kernels.vec import vec
 from .pdfs import (
     KIND_CODE,
@@ -46,7 +46,7 @@ from .records import replace as set_field
 from .scene import AreaLight, MeshLight, PointLight, Scene
 
 __all__ = ["KIND_CODE", "PathRecord", "PathRow", "Pdfs", "PhotonLight", "light_kinds",
-           "photon_record", "photon_row", "photon_table"]
+           "photon_record", "photon_row", "photon_table", "revolution_axis"]
 
 @dataclass
 class PathRecord:
@@ -120,8 +120,19 @@ class PathRecord:
 
     @property
     def A3(self) -> np.ndarray:
-        """(H, 3) the revolution axis of section 3.3: ``w3``, or the light axis when ``K = 2``."""
-        return np.where((self.K == 2)[:, None], self.axis, self.w3)
+        """(H, 3) the revolution axis of section 3.3 (:func:`revolution_axis`)."""
+        return revolution_axis(self)
+
+
+def revolution_axis(rec):
+    """(H, 3) the revolution axis ``A3`` of section 3.3 on records ``rec``: ``w3``, or the
+    light's axis / normal when ``x2`` is the light (``K = 2``)."""
+    return np.where((rec.K == 2)[:, None], rec.axis, rec.w3)
+
+
+@twin(revolution_axis)
+def _revolution_axis(rec):
+    return rec.axis if rec.K == 2 else rec.w3
 
 
 def photon_record(paths, photon: np.ndarray, K: np.ndarray, scene: Scene, rays,
@@ -266,6 +277,7 @@ class PathRow(NamedTuple):
     axis: Vec
     eu: Vec
     ev: Vec
+    x2: Vec
     x1: Vec
     x0: Vec
     w3: Vec
@@ -284,6 +296,14 @@ def _segment(x, w, t, ph, j):
     if j < 0:
         return (np.nan, np.nan, np.nan), np.nan
     return vec(w[ph, j]), t[ph, j]
+
+
+@inline
+def _vertex(x, ph, j):
+    """Tracer vertex ``j`` of photon ``ph``, NaN where ``j < 0`` (beyond the light)."""
+    if j < 0:
+        return (np.nan, np.nan, np.nan)
+    return vec(x[ph, j])
 
 
 @inline
@@ -306,7 +326,8 @@ def photon_row(x, w, t, lights, ph, K, st, g):
     pdf = PdfsRow(e1, e2, e3, f1, f2, f3, p1, p2, 2.0 * np.pi * p1, puv, pu, pv)
     zero = (0.0, 0.0, 0.0)
     return PathRow(K, kind, st, g, lt.pk, (lt.u, lt.v), axis, lt.eu, lt.ev,
-                   vec(x[ph, K - 1]), zero, w3, w2, w1, t3, t2, t1, zero, pdf)
+                   _vertex(x, ph, K - 2), vec(x[ph, K - 1]), zero, w3, w2, w1, t3, t2, t1,
+                   zero, pdf)
 
 
 @inline
@@ -329,6 +350,14 @@ def with_t2(row, t2):
     e, f = flight_pdf(t2, row.st)
     return set_field(set_field(row, "t2", t2), "pdf",
                      set_field(set_field(row.pdf, "e2", e), "t2", f))
+
+
+@inline
+def with_w2(row, w2):
+    """``row.with_(w2=w2)`` with the pdf of ``w2`` (set ``w1`` after it: its pdf is about
+    ``w2``)."""
+    p2 = direction_pdf(row.K, 2, row.kind, row.axis, row.w3, w2, row.g)
+    return set_field(set_field(row, "w2", w2), "pdf", set_field(row.pdf, "w2", p2))
 
 
 @inline
@@ -365,6 +394,6 @@ def row_of(rec: PathRecord, i: int) -> PathRow:
     pdf = rec.pdf
     return PathRow(int(rec.K[i]), int(rec.kind[i]), float(rec.st), float(rec.scene.medium.g),
                    float(triangle_pmf(rec.select([i]), rec.scene)[0]), v(rec.uv), v(rec.axis),
-                   v(rec.eu), v(rec.ev), v(rec.x1), v(rec.x0), v(rec.w3), v(rec.w2), v(rec.w1),
-                   float(rec.t3[i]), float(rec.t2[i]), float(rec.t1[i]), v(rec.psi),
+                   v(rec.eu), v(rec.ev), v(rec.x2), v(rec.x1), v(rec.x0), v(rec.w3), v(rec.w2),
+                   v(rec.w1), float(rec.t3[i]), float(rec.t2[i]), float(rec.t1[i]), v(rec.psi),
                    PdfsRow(*(float(getattr(pdf, f)[i]) for f in PdfsRow._fields)))

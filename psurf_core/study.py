@@ -54,6 +54,14 @@ Without a reference image, :func:`compare` first renders the path tracer (``refe
 same scene and scatter range for ``reference_seconds`` (default :func:`default_reference_seconds`)
 with seed ``S + runs`` (no run uses it), and reports its passes and time.
 
+``reference.reliability``
+    Whether the reference's own per-pixel error estimate can be trusted
+    (:func:`psurf_core.reliability.summarize` of its pass moments: the pixels whose passes
+    are so heavy-tailed that ``var / passes`` understates the error of their mean). When
+    too many pixels are flagged, or the check cannot be made (an .npz written before the
+    moments were recorded), its message is also in the study's ``warnings``, which
+    ``compare.md`` lists and the command line prints.
+
 numpy and matplotlib only (figures through :mod:`psurf_core.images`, no pyplot).
 """
 
@@ -67,6 +75,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from . import reliability as rl
 from .estimators import Estimator, parse_estimator
 from .metrics import RELMSE_EPS, relmse, relmse_map, var_relmse
 from .pass_size import auto_photons
@@ -122,6 +131,9 @@ class Reference:
         ``"render"`` (made by :func:`compare`) or the .npz path it was read from.
     estimator : str
     seed : int or None
+    moments : dict or None
+        The pass-moment arrays of :func:`psurf_core.reliability.npz_fields` (``m2``, ``m3``,
+        ``m4``, ``peak``), for the reliability check; None when unknown.
     """
 
     mean: np.ndarray
@@ -131,6 +143,16 @@ class Reference:
     source: str = "render"
     estimator: str = "reference"
     seed: int | None = None
+    moments: dict | None = None
+
+    def reliability(self) -> dict:
+        """:func:`psurf_core.reliability.summarize` of the reference's pass moments."""
+        rel = None
+        if self.moments and self.passes:
+            rel = rl.from_npz({**self.moments, "mean": self.mean, "passes": self.passes})
+        what = ("the reference" if self.source == "render" else
+                f"the reference {os.path.basename(self.source)}")
+        return rl.summarize(rel, what)
 
     @property
     def floor(self) -> float | None:
@@ -147,7 +169,13 @@ def load_reference(path: str, scene: Scene) -> Reference:
     ------
     SceneError
         Missing or unreadable file, no ``mean``, a resolution other than the scene camera's,
-        non-finite pixels, or a recorded scatter range other than the scene's.
+        non-finite pixels, or a recorded scatter range other than the scene's, pass moments
+        of another shape.
+
+    Notes
+    -----
+    Files written before the pass moments were recorded load with ``moments=None`` (the
+    reliability check then says it could not be made).
     """
     try:
         with np.load(path, allow_pickle=False) as z:
@@ -174,6 +202,13 @@ def load_reference(path: str, scene: Scene) -> Reference:
                              "(use --min-scatter/--max-scatter or another reference)")
     var = data.get("var")
     passes = int(data["passes"]) if "passes" in data else None
+    moments = None
+    if all(k in data for k in rl.NPZ_KEYS):
+        moments = {k: np.asarray(data[k], dtype=np.float64) for k in rl.NPZ_KEYS}
+        bad = [k for k, a in moments.items() if a.shape != mean.shape]
+        if bad:
+            raise SceneError(f"--reference {path}: pass moments {', '.join(bad)} are not "
+                             f"{'x'.join(map(str, mean.shape))} like 'mean'")
     return Reference(
         mean=mean,
         var=None if var is None else np.asarray(var, dtype=np.float64),
@@ -182,6 +217,7 @@ def load_reference(path: str, scene: Scene) -> Reference:
         source=os.fspath(path),
         estimator=str(data["estimator"]) if "estimator" in data else "?",
         seed=int(data["seed"]) if "seed" in data else None,
+        moments=moments,
     )
 
 
@@ -363,12 +399,17 @@ def compare(
         if on_render is not None:
             on_render("reference", res)
         reference = Reference(res.mean.copy(), res.var.copy(), res.passes, res.seconds,
-                              "render", "reference", ref_seed)
+                              "render", "reference", ref_seed,
+                              rl.npz_fields(res.accumulator) or None)
     ref = reference.mean
     floor = reference.floor
+    # Heavy tails make the reference's own error bars (and so the floor) too small.
+    ref_reliability = reference.reliability()
+    warnings = [ref_reliability["message"]] if ref_reliability["warn"] else []
 
     # ---- the estimators
-    results, arrays = [], {"reference": ref, "reference_var": reference.var, "estimators": []}
+    results, arrays = [], {"reference": ref, "reference_var": reference.var,
+                           "reference_moments": reference.moments, "estimators": []}
     for k, est in enumerate(ests):
         est_settings = replace(settings, photons=photons[k])
         per_run, finals = [], []
@@ -474,7 +515,9 @@ def compare(
             "seconds": reference.seconds,
             "seed": reference.seed,
             "relmse_floor": floor,
+            "reliability": ref_reliability,
         },
+        "warnings": warnings,
         "results": results,
         "arrays": arrays,
     }

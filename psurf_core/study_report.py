@@ -107,9 +107,13 @@ def write_compare_md(path: str, study: dict) -> None:
         f"- reference: {ref_text}; its noise alone gives relMSE "
         f"{_g(ref['relmse_floor'])}",
     ]
+    if ref.get("reliability"):
+        lines.append(f"- reference error estimate: {ref['reliability']['message']}")
     if study.get("command"):
         lines.append(f"- command: `{study['command']}`")
     lines += ["", format_table(study), ""]
+    if study.get("warnings"):
+        lines += ["Warnings:", ""] + [f"- {w}" for w in study["warnings"]] + [""]
     notes = [(r["estimator"], n) for r in study["results"] for n in r["notes"]]
     if notes:
         lines += ["Notes:", ""] + [f"- `{e}`: {n}" for e, n in notes] + [""]
@@ -230,6 +234,8 @@ def write_reference_npz(path: str, study: dict, scene: Scene) -> None:
         "max_scatter": np.int64(scene.max_scatter),
         "version": np.str_(__version__),
     }
+    # The pass moments, so that a later compare --reference can check its reliability.
+    data.update(study["arrays"].get("reference_moments") or {})
     target = im._atomic_target(path)
     try:
         with open(target, "wb") as f:

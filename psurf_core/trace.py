@@ -7,14 +7,25 @@ A photon is extended only while some technique could still use its next segment 
 deepest look-back of any technique is three segments: the generalized planes rebuild
 ``x2, x1`` from ``x3``), so escaped photons cost a bounded amount of work and bias nothing.
 
-Speed (issue #6): the random numbers are drawn depth by depth exactly as the numpy
-implementation drew them (the same stream, in the same order, of the same sizes) and
-``cos``/``sin``/``log1p`` stay numpy's; the per-photon arithmetic of emission and of a depth
-step, and the final scatter into the arrays below, run in compiled loops
-(:mod:`psurf_core.trace_kernels`) with the same IEEE operations. ``Blockers.occluded`` gets
-exactly the segments it always got (its BLAS dot products round differently in other arrays)
-or, when it provably finds nothing, is not called. The output is bit-identical to the numpy
-implementation's (``tests/test_trace_identity.py``).
+Two implementations, side by side, with the same names:
+
+* the **numpy reference**, this module and :mod:`psurf_core.trace_emit` (emission): structs
+  of arrays over the active photons, one loop over depth (``emit``, :func:`step`,
+  :func:`assemble`), built from elementary formulas vectorized over photons
+  (``direction_about``, :func:`phase_cosine`, :func:`free_flight`, :func:`segment_clip`, ...);
+* the **compiled path**, :mod:`psurf_core.trace_compiled` and
+  :mod:`psurf_core.trace_emit_compiled`, what :func:`trace` runs: per-photon numba loops of the
+  same stages (``emit``, ``step``, ``assemble``, ``trace``) calling each formula's compiled
+  twin, a scalar function registered under the numpy function's name
+  (:func:`psurf_core.kernels.jit.twin`) with the same IEEE operations in the same order. Its
+  shadow tests (:mod:`psurf_core.trace_shadow`) decide ``Blockers.occluded``'s answer from
+  rounding bounds where it cannot depend on rounding, and its memory is reused between calls
+  (:mod:`psurf_core.trace_buffers`).
+
+Both draw the same random numbers from the generator (the same calls, sizes and order) and
+leave ``cos``, ``sin`` and ``log1p`` to numpy. ``tests/test_trace_reference.py`` holds them
+bit-identical on every bundled scene; ``tests/test_trace_identity.py`` holds both to the
+frozen output of 2026-11-22.
 
 Vertex numbering: ``x[:, 0]`` is the light point and ``x[:, j]`` the photon's ``j``-th
 scattering vertex; segment ``j`` (stored at index ``j - 1``) goes from vertex ``j - 1`` to
@@ -30,9 +41,12 @@ import numpy as np
 
 from . import sampling
 from .compiled import ctrl_c_kept
-from .constants import HG_ISOTROPIC_G, MAX_TRACE_DEPTH, ROULETTE_START, SHADOW_EPS
-from .geometry import Blockers, blockers_of
-from .scene import AreaLight, MeshLight, PointLight, Scene
+from .constants import MAX_TRACE_DEPTH, PARALLEL_EPS, ROULETTE_START
+from .geometry import Blockers, blockers_of, inside_box
+from .scene import Scene
+from .trace_emit import direction_about, emit
+
+__all__ = ["LOOKBACK", "PhotonPaths", "emit", "roulette_survival", "trace", "trace_depth"]
 
 #: Deepest look-back (in segments) of any technique; see the module docstring.
 LOOKBACK = 3
@@ -57,17 +71,18 @@ class PhotonPaths:
     light_normal : (P, 3) float
         ``n_L`` / ``n_k`` for area and mesh lights; the light's ``axis`` for point lights.
     x : (P, D + 1, 3) float
-        Vertices: ``x[:, 0]`` on the light, ``x[:, j]`` the ``j``-th scattering vertex.
+        Vertices (scene units): ``x[:, 0]`` on the light, ``x[:, j]`` the ``j``-th scattering
+        vertex; past a photon's last segment, its last vertex repeated.
     w : (P, D, 3) float
         Unit direction of segment ``j`` at index ``j - 1``.
     t : (P, D) float
-        Sampled free-flight length of segment ``j`` at index ``j - 1``.
+        Sampled free-flight length (scene units) of segment ``j`` at index ``j - 1``.
     beta : (P, D, 3) float
         Weight leaving vertex ``j - 1`` along segment ``j`` (W; the emitted power over
         ``P_L``, times ``ss/st`` per scattering, over roulette survival).
     alive : (P, D) bool
         Segment was sampled (false after roulette, past the depth cap, or once no
-        technique can use it).
+        technique can use it; ``w``, ``t``, ``beta`` and ``clip`` are 0 there).
     prefix_ok : (P, D + 1) bool
         Vertices ``1..j`` inside the box and segments ``1..j`` unoccluded.
     clip : (P, D, 2) float
@@ -118,90 +133,175 @@ def roulette_survival(scene: Scene, vertex: int) -> float:
     """Survival probability before sampling the segment that leaves ``vertex`` (depth only)."""
     if scene.max_scatter > 0 or vertex < ROULETTE_START:
         return 1.0
-    return float(np.clip(scene.medium.albedo, 0.25, 0.9))
+    return min(max(float(scene.medium.albedo), 0.25), 0.9)
 
 
-def emit(scene: Scene, rng: np.random.Generator, n: int):
-    """Sample ``n`` photon emissions (light chosen proportional to power).
+# --------------------------------------------------------------------------- formulas
+# Each has a compiled scalar twin of the same name in trace_compiled (same operations, same
+# order; a (3,) vector there is a 3-tuple).
+def phase_cosine(g, u):
+    """Scattering cosine ``mu`` with density ``2 pi rho(mu)`` from its variate ``u``
+    (``sampling.sample_phase_cos``: isotropic below ``HG_ISOTROPIC_G``).
 
-    Returns
-    -------
-    dict of (n, ...) arrays: ``light, light_pmf, light_uv, tri, light_normal, x0, w1, beta``.
-    """
-    from . import trace_kernels as tk  # numba: imported on first use, not with psurf_core
-
-    pmf = scene.light_pmf
-    light = _sample_discrete(pmf, rng, n, tk)
-    # Every photon has a light and every light writes x0, w1, normal and beta of its photons.
-    x0, w1, normal, beta = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-    uv = np.zeros((n, 2))
-    tri = np.full(n, -1, dtype=np.int64)
-    for li, lt in enumerate(scene.lights):
-        sel = np.flatnonzero(light == li)
-        m = sel.size
-        if m == 0:
-            continue
-        # One light for every photon (the usual case): the kernels write the outputs directly.
-        whole = m == n
-        rows = slice(None) if whole else sel
-        xo = x0 if whole else np.empty((m, 3))
-        wo = w1 if whole else np.empty((m, 3))
-        beta[rows] = lt.power_rgb / pmf[li]
-        # One rng.random call per light: the same stream as the samplers' separate draws
-        # (each listed below in their order).
-        if isinstance(lt, PointLight):
-            r = rng.random(2 * m)  # sample_uniform_sphere: z, azimuth
-            phi = 2.0 * np.pi * r[m:]
-            tk.emit_point(r[:m], np.cos(phi), np.sin(phi), wo)
-            x0[rows] = lt.position
-            normal[rows] = lt.axis
-        elif isinstance(lt, AreaLight):
-            r = rng.random(4 * m)  # (u, v) per photon; sample_cosine_hemisphere: cos^2, azimuth
-            u = r[: 2 * m].reshape(m, 2)
-            phi = 2.0 * np.pi * r[3 * m :]
-            nl = lt.normal
-            tk.emit_area(u, r[2 * m : 3 * m], np.cos(phi), np.sin(phi), lt.corner, lt.edge_u,
-                         lt.edge_v, nl, xo, wo)
-            uv[rows] = u
-            normal[rows] = nl
-        elif isinstance(lt, MeshLight):
-            k = _sample_discrete(lt.areas / lt.area, rng, m, tk)
-            # sample_triangle_barycentric: sqrt-variate, second variate; then cos^2, azimuth
-            r = rng.random(4 * m)
-            phi = 2.0 * np.pi * r[3 * m :]
-            bo = uv if whole else np.empty((m, 2))
-            no = normal if whole else np.empty((m, 3))
-            tk.emit_mesh(k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], np.cos(phi), np.sin(phi),
-                         np.ascontiguousarray(lt.triangles, dtype=float),
-                         np.ascontiguousarray(lt.normals, dtype=float), bo, xo, no, wo)
-            tri[sel] = k
-            if not whole:
-                uv[sel], normal[sel] = bo, no
-        else:  # pragma: no cover - the scene loader admits no other light
-            raise TypeError(f"unknown light {lt!r}")
-        if not whole:
-            if not isinstance(lt, PointLight):
-                x0[sel] = xo
-            w1[sel] = wo
-    return dict(light=light, light_pmf=pmf[light], light_uv=uv, tri=tri, light_normal=normal,
-                x0=x0, w1=w1, beta=beta)
-
-
-def _sample_discrete(pmf: np.ndarray, rng: np.random.Generator, n: int, tk) -> np.ndarray:
-    """:func:`sampling.sample_discrete` (same draws, same indices) with a compiled search:
-    picking among a mesh light's triangles was the slowest step of emission.
+    Parameters
+    ----------
+    g : float
+    u : (M,) float
 
     Returns
     -------
-    (n,) intp
+    (M,) float
     """
-    if len(pmf) == 1:
-        return sampling.sample_discrete(pmf, rng, n)  # no search at all
-    cdf = np.cumsum(pmf)
-    cdf /= cdf[-1]
-    k = np.empty(n, dtype=np.intp)
-    tk.search_right(cdf, rng.random(n), k)
-    return np.minimum(k, len(pmf) - 1)
+    return sampling.sample_phase_cos(g, u)
+
+
+def free_flight(log1p_neg_u, sigma_t):
+    """Free-flight lengths ``t = -log1p(-u) / sigma_t`` (scene units; pdf
+    ``sigma_t exp(-sigma_t t)``, ``sampling.sample_free_flight``).
+
+    Parameters
+    ----------
+    log1p_neg_u : (M,) float
+        ``log1p(-u)`` of the variates (numpy's ``log1p``).
+    sigma_t : float
+        Extinction (1 / scene unit).
+
+    Returns
+    -------
+    (M,) float
+    """
+    return -log1p_neg_u / sigma_t
+
+
+def advance(x, w, t):
+    """Segment ends ``x + t w``: (M, 3) from (M, 3), (M, 3), (M,)."""
+    return x + t[:, None] * w
+
+
+def segment_clip(x, w, t, bmin, bmax):
+    """In-box part of segments ``x + s w``, ``s`` in ``[0, t]``: ``geometry.ray_box``'s slab
+    test (directions below ``PARALLEL_EPS`` treated as ``PARALLEL_EPS``), the largest entry and
+    the smallest exit, each clipped to ``[0, t]``. Written with comparisons (``where``), as
+    the compiled twin is, so that both agree on signed zeros too.
+
+    Parameters
+    ----------
+    x, w : (M, 3) float
+    t : (M,) float
+    bmin, bmax : (3,) float
+
+    Returns
+    -------
+    (M, 2) float
+        ``[enter, exit]``; ``enter >= exit`` where the segment misses the box.
+    """
+    inv = 1.0 / np.where(np.abs(w) < PARALLEL_EPS, PARALLEL_EPS, w)
+    p = (bmin - x) * inv
+    q = (bmax - x) * inv
+    lo, hi = np.where(p < q, p, q), np.where(p < q, q, p)
+    enter, leave = lo[:, 0], hi[:, 0]
+    for c in (1, 2):
+        enter = np.where(lo[:, c] > enter, lo[:, c], enter)
+        leave = np.where(hi[:, c] < leave, hi[:, c], leave)
+    enter, leave = np.where(enter > 0.0, enter, 0.0), np.where(leave > 0.0, leave, 0.0)
+    return np.stack([np.where(enter < t, enter, t), np.where(leave < t, leave, t)], axis=-1)
+
+
+def survives(ok_look, u, q):
+    """(M,) bool: a photon goes on while a technique can still use its next segment
+    (``ok_look``: ``prefix_ok`` at the deepest vertex a technique looks back to) and it
+    survives roulette (``u < q``; no variates, ``u`` ignored, when ``q >= 1``)."""
+    return ok_look & (u < q) if q < 1.0 else ok_look
+
+
+def scattered_weight(beta, q, albedo):
+    """Weights after a phase-sampled scattering: ``beta / q * albedo`` (``/ q`` only under
+    roulette). (M, 3) W from (M, 3) W."""
+    return (beta / q if q < 1.0 else beta) * albedo
+
+
+# --------------------------------------------------------------------------- stages
+@dataclass(frozen=True)
+class Step:
+    """The segments one depth sampled, for its ``m`` active photons (struct of arrays).
+
+    Attributes
+    ----------
+    photon : (m,) int
+        Photon index, increasing.
+    t : (m,) float
+    w, beta, x_end : (m, 3) float
+        Direction, weight (W), end vertex.
+    clip : (m, 2) float
+    """
+
+    photon: np.ndarray
+    t: np.ndarray
+    w: np.ndarray
+    beta: np.ndarray
+    x_end: np.ndarray
+    clip: np.ndarray
+
+
+def step(photon, x, w, beta, t, ok_prev, box, blockers: Blockers):
+    """Segment ``j`` of the active photons: its end vertices, in-box part and the new
+    vertex's ``prefix_ok`` (the previous one, the end inside the box (``geometry.inside_box``),
+    the segment unoccluded).
+
+    Parameters
+    ----------
+    photon : (m,) int
+    x, w, beta : (m, 3) float
+        Start vertex, direction, weight of each active photon.
+    t : (m,) float
+        Sampled lengths.
+    ok_prev : (N,) bool
+        ``prefix_ok`` of the start vertex, per photon.
+    box : tuple of (3,) float
+        ``(bmin, bmax)``: the medium box.
+    blockers : Blockers
+
+    Returns
+    -------
+    Step
+    ok : (N,) bool
+        ``prefix_ok`` of the end vertex (false for photons not in ``photon``).
+    """
+    bmin, bmax = box
+    x_end = advance(x, w, t)
+    ok = np.zeros(ok_prev.shape[0], dtype=bool)
+    sel = ok_prev[photon]
+    ok[photon[sel]] = inside_box(x_end[sel], bmin, bmax) & ~blockers.occluded(x[sel], x_end[sel])
+    return Step(photon, t, w, beta, x_end, segment_clip(x, w, t, bmin, bmax)), ok
+
+
+def assemble(e: dict, steps: list[Step], oks: list[np.ndarray]) -> PhotonPaths:
+    """Scatter the per-depth steps into ``PhotonPaths``' photon-major arrays: zeros (and
+    ``alive`` false) past a photon's last segment, its last vertex carried forward in ``x``.
+
+    Parameters
+    ----------
+    e : dict
+        :func:`emit`'s output.
+    steps : list of Step
+        One per traced depth (``D``).
+    oks : list of (N,) bool
+        ``prefix_ok`` per vertex (``D + 1``).
+    """
+    n, d = e["x0"].shape[0], len(steps)
+    x = np.empty((d + 1, n, 3))  # depth-major: a row copy carries the last vertex forward
+    x[0] = e["x0"]
+    w, beta, clip = np.zeros((n, d, 3)), np.zeros((n, d, 3)), np.zeros((n, d, 2))
+    t, alive = np.zeros((n, d)), np.zeros((n, d), dtype=bool)
+    for j, s in enumerate(steps):
+        x[j + 1] = x[j]
+        x[j + 1, s.photon] = s.x_end
+        w[s.photon, j], beta[s.photon, j], t[s.photon, j] = s.w, s.beta, s.t
+        clip[s.photon, j], alive[s.photon, j] = s.clip, True
+    return PhotonPaths(n_emitted=n, light=e["light"], light_pmf=e["light_pmf"],
+                       light_uv=e["light_uv"], tri=e["tri"], light_normal=e["light_normal"],
+                       x=np.ascontiguousarray(x.transpose(1, 0, 2)), w=w, t=t, beta=beta,
+                       alive=alive, prefix_ok=np.stack(oks, axis=1), clip=clip)
 
 
 def trace(
@@ -211,6 +311,7 @@ def trace(
     *,
     blockers: Blockers | None = None,
     max_depth: int | None = None,
+    reference: bool = False,
 ) -> PhotonPaths:
     """Trace ``n_photons`` photon subpaths (spec sections 1 and 4).
 
@@ -224,121 +325,48 @@ def trace(
         ``blockers_of(scene)`` (built here when not given).
     max_depth : int, optional
         Segments to trace (default :func:`trace_depth`).
+    reference : bool
+        Run the numpy reference of this module instead of the compiled path
+        (``trace_compiled.trace``); the result and the generator's state are the same.
 
     Returns
     -------
     PhotonPaths
     """
-    with ctrl_c_kept():
-        return _trace(scene, n_photons, rng, blockers, max_depth)
+    blockers = blockers_of(scene) if blockers is None else blockers
+    depth = trace_depth(scene) if max_depth is None else int(max_depth)
+    if not reference:
+        from . import trace_compiled  # numba: imported on first use, not with psurf_core
 
-
-def _trace(scene, n_photons, rng, blockers, max_depth) -> PhotonPaths:
-    """:func:`trace`: depth-major numpy draws, compiled steps (``trace_kernels``)."""
-    from . import trace_kernels as tk  # numba: imported on first use, not with psurf_core
-    from .geometry import _BOUNDS_PAD
-
+        with ctrl_c_kept():
+            return trace_compiled.trace(scene, n_photons, rng, blockers, depth)
     med = scene.medium
-    st, g, albedo = med.sigma_t, med.phase.g, med.albedo
-    hg = abs(g) >= HG_ISOTROPIC_G  # sampling.sample_phase_cos's isotropic cut-off
     bmin = np.asarray(med.bounds_min, dtype=float)
     bmax = np.asarray(med.bounds_max, dtype=float)
-    blockers = blockers_of(scene) if blockers is None else blockers
-    # Which segments Blockers.occluded must see: those whose box meets a blocker's box (its
-    # own first reject, repeated in the step kernel), every one when it has no boxes, none
-    # when nothing blocks. It then sees the rows it would have picked itself, in order.
-    # It is skipped when it provably finds nothing (tk.step's `unsure`).
-    bounds, planes, test_all = np.zeros((0, 2, 3)), np.zeros((0, 4)), False
-    if not blockers.empty:
-        if blockers.bounds is None or blockers.planes is None:
-            test_all = True
-        else:
-            bounds = np.ascontiguousarray(blockers.bounds, dtype=float)
-            planes = np.ascontiguousarray(blockers.planes, dtype=float)
-    depth = trace_depth(scene) if max_depth is None else int(max_depth)
+    box = (bmin, bmax)
     e = emit(scene, rng, n_photons)
-    n = n_photons
-
-    # State of the active photons, compacted in place (rows 0..m-1, in photon order):
-    # photon index, current vertex, direction of the next segment (the weights follow from
-    # the roulette survivals `qs`: tk.assemble).
-    idx = np.arange(n)
-    x = e["x0"].copy()
-    w = e["w1"].copy()
-    m = n
-    oks = [np.ones(n, dtype=bool)]  # prefix_ok per vertex, (N,) each
-    # Step records, step-major (step j: rows rec_off[j-1] .. rec_off[j] - 1); grown by
-    # doubling. Scattered photon-major once at the end (tk.assemble).
-    cap = max(n * min(depth, 8), 1)
-    rec_idx = np.empty(cap, dtype=np.int64)
-    rec = np.empty((cap, tk.REC_COLS))
-    rec_off = [0]
-    qs = [1.0]  # roulette survival before each segment, for tk.assemble
-    near_pos = np.empty(n, dtype=np.int64)
-    near_a, near_b = np.empty((n, 3)), np.empty((n, 3))
-    near_inb = np.empty(n, dtype=bool)
-    empty = np.empty(0)
+    photon, x, w, beta = np.arange(n_photons), e["x0"], e["w1"], e["beta"]
+    oks, steps = [np.ones(n_photons, dtype=bool)], []
     for j in range(1, depth + 1):
         # Segment j leaves vertex j-1. Roulette decides before sampling it (depth only), and
         # a photon goes on only while a technique can still use the segment.
-        scatter = j > 1
-        if scatter:
+        if j > 1:
             q = roulette_survival(scene, j - 1)
-            qs.append(q)
-            u = rng.random(m) if q < 1.0 else empty
-            m = tk.select(m, idx, x, w, oks[max(j - LOOKBACK, 0)], u, q)
-            # The draws of sample_phase (cosine, azimuth), then sample_free_flight: one call,
-            # the same stream as three.
-            r = rng.random(3 * m)
-            u_mu = r[:m]
+            u = rng.random(photon.size) if q < 1.0 else None
+            keep = survives(oks[max(j - LOOKBACK, 0)][photon], u, q)
+            photon, x, w = photon[keep], x[keep], w[keep]
+            beta = scattered_weight(beta[keep], q, med.albedo)
+            m = photon.size
+            r = rng.random(3 * m)  # the phase cosine, the azimuth, the flight: one call
             phi = 2.0 * np.pi * r[m : 2 * m]
-            cphi, sphi = np.cos(phi), np.sin(phi)
-            lg = np.log1p(-r[2 * m :])
+            w = direction_about(w, phase_cosine(med.phase.g, r[:m]), np.cos(phi), np.sin(phi))
+            t = free_flight(np.log1p(-r[2 * m :]), med.sigma_t)
         else:
-            u_mu = cphi = sphi = empty
-            lg = np.log1p(-rng.random(m))
-        off = rec_off[-1]
-        if off + m > rec_idx.shape[0]:
-            grow = max(2 * rec_idx.shape[0], off + m)
-            rec_idx = np.concatenate([rec_idx[:off], np.empty(grow - off, dtype=np.int64)])
-            rec = np.concatenate([rec[:off], np.empty((grow - off, tk.REC_COLS))])
-        ok = np.zeros(n, dtype=bool)
-        nn, unsure = tk.step(m, idx, x, w, scatter, hg, g, u_mu, cphi, sphi, lg, st,
-                             bmin, bmax, oks[-1], ok, test_all, bounds, planes, _BOUNDS_PAD,
-                             0.5 * SHADOW_EPS, rec_idx, rec, off, near_pos, near_a, near_b,
-                             near_inb)
-        if nn:
-            # The exact test on exactly the rows it would have taken (its dot products are
-            # BLAS's, whose rounding depends on the array), unless it provably finds nothing.
-            if unsure:
-                ok[near_pos[:nn]] = near_inb[:nn] & ~blockers.occluded(near_a[:nn], near_b[:nn])
-            else:
-                ok[near_pos[:nn]] = near_inb[:nn]
-        rec_off.append(off + m)
+            t = free_flight(np.log1p(-rng.random(n_photons)), med.sigma_t)
+        s, ok = step(photon, x, w, beta, t, oks[-1], box, blockers)
+        steps.append(s)
         oks.append(ok)
-        if m == 0:
+        x = s.x_end
+        if photon.size == 0:
             break
-
-    d = len(oks) - 1
-    xs = np.empty((n, d + 1, 3))
-    ws, betas = np.empty((n, d, 3)), np.empty((n, d, 3))
-    ts, alives, clips = np.empty((n, d)), np.empty((n, d), dtype=bool), np.empty((n, d, 2))
-    prefix_ok = np.empty((n, d + 1), dtype=bool)
-    tk.assemble(e["x0"], e["beta"], np.array(qs), albedo, np.stack(oks), rec_idx, rec,
-                np.array(rec_off, dtype=np.int64), xs, ws, ts, betas, alives, clips, prefix_ok)
-
-    return PhotonPaths(
-        n_emitted=n,
-        light=e["light"],
-        light_pmf=e["light_pmf"],
-        light_uv=e["light_uv"],
-        tri=e["tri"],
-        light_normal=e["light_normal"],
-        x=xs,
-        w=ws,
-        t=ts,
-        beta=betas,
-        alive=alives,
-        prefix_ok=prefix_ok,
-        clip=clips,
-    )
+    return assemble(e, steps, oks)

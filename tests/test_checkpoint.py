@@ -383,3 +383,82 @@ def test_sigint_mid_render_then_resume_gives_the_uninterrupted_npz(work):
         out, err = proc.communicate(timeout=180)
         assert proc.returncode == 0, err
     same_image(load(work / "resumed.npz"), load(work / "full.npz"))
+
+
+# --------------------------------------------------------------------------- higher moments
+def _format_1(directory) -> None:
+    """Rewrite DIR/checkpoint.npz as a format-1 checkpoint (before the pass moments)."""
+    path = Path(directory) / "checkpoint.npz"
+    with np.load(path) as d:
+        data = {k: d[k] for k in ("n", "mean", "m2")}
+        meta = json.loads(str(d["meta"]))
+    meta["format"] = 1
+    meta.pop("tails")
+    meta["identity"].pop("reference_sampler", None)
+    with open(path, "wb") as f:
+        np.savez(f, **data, meta=np.str_(json.dumps(meta)))
+
+
+def test_checkpoint_keeps_the_pass_moments_exactly(tmp_path):
+    xs = np.random.default_rng(2).lognormal(size=(6, 3, 4, 3))
+    acc = Welford.empty((3, 4, 3))
+    for x in xs:
+        acc.add(x)
+    ck.save_checkpoint(tmp_path, acc, {"seed": 1}, seconds=1.0, version="x")
+    got = ck.load_checkpoint(tmp_path)
+    assert got.meta["format"] == 2 and got.meta["tails"] and got.accumulator.has_tails
+    for k in ("mean", "m2", "m3", "m4", "peak"):
+        np.testing.assert_array_equal(getattr(got.accumulator, k), getattr(acc, k))
+    # Format 1 still loads; its accumulator does not know the moments.
+    _format_1(tmp_path)
+    old = ck.load_checkpoint(tmp_path).accumulator
+    assert old.n == 6 and not old.has_tails
+    np.testing.assert_array_equal(old.m2, acc.m2)
+    # So does an accumulator without them, saved as format 2.
+    ck.save_checkpoint(tmp_path, old, {"seed": 1}, seconds=1.0, version="x")
+    assert not ck.load_checkpoint(tmp_path).accumulator.has_tails
+    # A format-2 file that claims the moments but lacks them is refused, in one line.
+    path = tmp_path / "checkpoint.npz"
+    ck.save_checkpoint(tmp_path, acc, {"seed": 1}, seconds=1.0, version="x")
+    with np.load(path) as d:
+        data = {k: d[k] for k in d.files if k != "m4"}
+    with open(path, "wb") as f:
+        np.savez(f, **data)
+    with pytest.raises(ck.CheckpointError, match="without its m4") as e:
+        ck.load_checkpoint(tmp_path)
+    assert "\n" not in str(e.value) and str(path) in str(e.value)
+
+
+def test_resume_keeps_the_pass_moments_bit_identical(work, capsys):
+    """The output .npz carries m2, m3, m4 and the peak; a resumed render gives the same bits
+    as an uninterrupted one, and one resumed from a format-1 checkpoint the same image (its
+    moments unknown, so its .npz has none)."""
+    assert run(capsys, *FAST, "--passes", "4", "--out", "full.npz")[0] == 0
+    assert run(capsys, *FAST, "--passes", "2", "--out", "a.npz", "--checkpoint", "ck")[0] == 0
+    assert run(capsys, *FAST, "--passes", "4", "--out", "b.npz", "--resume", "ck")[0] == 0
+    full, b = load(work / "full.npz"), load(work / "b.npz")
+    same_image(b, full)
+    for k in ("m2", "m3", "m4", "peak"):
+        assert full[k].dtype == np.float64
+        np.testing.assert_array_equal(b[k], full[k])
+    assert run(capsys, *FAST, "--passes", "2", "--out", "a.npz", "--checkpoint", "old")[0] == 0
+    _format_1(work / "old")
+    code, _, err = run(capsys, *FAST, "--passes", "4", "--out", "c.npz", "--resume", "old")
+    assert code == 0, err
+    c = load(work / "c.npz")
+    same_image(c, full)
+    assert "m3" not in c
+
+
+def test_resume_refuses_a_reference_checkpoint_of_the_old_sampler(work, capsys):
+    """A path-tracer checkpoint from before issue 15's sampler (no ``reference_sampler`` in
+    its identity) would resume into a mix of two samplers: refused, in one line."""
+    ref = ["--estimator", "reference", "--seed", "3"]
+    assert run(capsys, *ref, "--passes", "2", "--out", "a.npz", "--checkpoint", "ck")[0] == 0
+    assert ck.load_checkpoint(work / "ck").identity["reference_sampler"]
+    _format_1(work / "ck")
+    code, _, err = run(capsys, *ref, "--passes", "3", "--out", "b.npz", "--resume", "ck")
+    assert code == 2
+    line = one_line(err)
+    assert "another version of the reference path tracer" in line and "without --resume" in line
+    assert not (work / "b.npz").exists()

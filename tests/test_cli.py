@@ -251,6 +251,8 @@ def test_demo_writes_the_comparison(tmp_path):
     assert "at equal time" in r.stdout and "relMSE" in r.stdout
     assert "not counted" in r.stdout  # compiling is reported apart
     assert "its own noise adds" in r.stdout  # the reference's own error, said
+    # and how to show the same comparison to a class in their browsers
+    assert f"python app.py serve {SCENE.name} --estimators {specs} --port 8080" in r.stdout
     assert len(iio.imread(out / "convergence.gif", index=None)) >= 2
     fig = images_read(out / "comparison.png")
     assert fig.shape[:2] == (1000, 1600) and fig.std() > 10

@@ -226,8 +226,8 @@ def test_point_light_matches_quadrature_matrix(g, occ):
 class JointPdfStrip(SinglePlane):
     """The spec's known bug: a triangle strip divided by the joint density ``2 P_k``."""
 
-    def sampled_position_pdf(self, pdf, rec):
-        return pdf.uv
+    def sampled_position_pdf(self, kind, p_uv, p_u, p_v):
+        return p_uv
 
 
 def _compared_pixels(scene) -> np.ndarray:

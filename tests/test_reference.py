@@ -213,6 +213,80 @@ def test_emitter_single_scatter_matches_brute_force(light, g, seed=5):
     _assert_agree(m, se, brute, label=f"{type(light).__name__} g={g}")
 
 
+@pytest.mark.parametrize("strategy", ["equiangular", "mis-free-flight", "mis-directions"])
+def test_each_strategy_matches_brute_force_dense(strategy, seed=8):
+    """Single scattering from the tetrahedron in a dense medium (st = 4.5), where the
+    guided distances and the equiangular vertices differ most from free flight: every
+    strategy against the quadrature (the default one in the test above)."""
+    scene = _scene([TETRA], g=0.3, sigma_s=4.0, sigma_a=0.5)
+    bl = blockers_of(scene)
+    one, pick = _clear_rays(scene, _light_points(TETRA), bl)
+    rays = camera_rays(scene, spp=20000, jitter=False, pixels=one.pixel[pick], blockers=bl)
+    m, se = _stats(reference_pass(scene, rays, np.random.default_rng(seed), bl,
+                                  strategy=strategy), pick.size)
+    brute = np.array([_brute_force_single(scene, TETRA, one.o[i], one.d[i], one.s_min[i],
+                                          one.s_max[i]) for i in pick])
+    _assert_agree(m, se, brute, label=strategy)
+
+
+# --------------------------------------------------------------------------- sampler densities
+def _vertices(n=4000, seed=0):
+    """Points spread over the box, a few very close to the lights' centres."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-0.95, 0.95, (n, 3))
+    x[:50] = TETRA.triangles.mean(axis=(0, 1)) + rng.normal(0, 0.02, (50, 3))
+    x[50:60] = POINT.position + rng.normal(0, 1e-3, (10, 3))
+    return x
+
+
+@pytest.mark.parametrize("sigma_t", [1.0, 4.5, 40.0])
+def test_guided_direction_density_is_the_sampled_one(sigma_t):
+    """E[rho / p] = 1 for directions drawn from the guided mixture iff p is its density (the
+    weight is bounded by 1 / GUIDE_PHASE, so the mean has a finite variance)."""
+    from psurf_core import reference as R
+
+    scene = _scene([POINT, TETRA, AREA], g=0.4, sigma_s=0.9 * sigma_t, sigma_a=0.1 * sigma_t)
+    plan = R._Plan.of(scene, "mis")
+    assert plan.directions
+    x = _vertices()
+    rng = np.random.default_rng(1)
+    w_in = sample_uniform_sphere(rng, x.shape[0])
+    weights = []
+    for _ in range(25):
+        _, _, wt = R._scatter(scene, plan, x, w_in, rng)
+        weights.append(wt)
+    wt = np.concatenate(weights)
+    assert wt.max() <= 1 / R.GUIDE_PHASE + 1e-9
+    z = (wt.mean() - 1.0) / (wt.std(ddof=1) / np.sqrt(wt.size))
+    assert abs(z) < 4, (wt.mean(), z)
+    assert wt.min() < 0.2  # the guided lobe really concentrates somewhere
+
+
+@pytest.mark.parametrize("sigma_t", [1.0, 4.5, 40.0])
+def test_guided_distance_density_is_the_sampled_one(sigma_t):
+    """E[st / dens; t < t_end] = 1 - exp(-st t_end) (the free-flight mass of the segment)
+    for distances drawn from the guided mixture, iff dens is its density over Tr."""
+    from psurf_core import reference as R
+
+    scene = _scene([POINT, TETRA], sigma_s=0.9 * sigma_t, sigma_a=0.1 * sigma_t)
+    plan = R._Plan.of(scene, "mis")
+    assert plan.distances
+    rng = np.random.default_rng(2)
+    o = _vertices(2000, seed=3)
+    w = sample_uniform_sphere(rng, o.shape[0])
+    w[:200] = (plan.centres[1] - o[:200]) / np.linalg.norm(plan.centres[1] - o[:200],
+                                                            axis=1)[:, None]  # at the mesh
+    _, t_end = ray_box(o, w, scene.medium.bounds_min, scene.medium.bounds_max)
+    vals = []
+    for _ in range(20):
+        t, dens = R._sample_distance(scene, plan, o, w, t_end, rng)
+        np.testing.assert_allclose(dens, R._distance_density(scene, plan, o, w, t_end, t))
+        vals.append(np.where(t < t_end, sigma_t / dens, 0.0) - (-np.expm1(-sigma_t * t_end)))
+    v = np.concatenate(vals)
+    assert np.max(v) <= 1 / R.GUIDE_FLIGHT
+    assert abs(v.mean() / (v.std(ddof=1) / np.sqrt(v.size))) < 4
+
+
 def test_point_and_area_light_together(seed=6):
     """Light choice by power and emitters blocking another light's NEE: the sum of the two
     single-light oracles (point quadrature with the parallelogram as a blocker)."""
@@ -238,7 +312,8 @@ def test_point_and_area_light_together(seed=6):
 
 # --------------------------------------------------------------------------- self-consistency
 def test_strategies_agree(seed=100):
-    """NEE alone, phase-sampled hits alone and their MIS estimate the same integral."""
+    """NEE alone, phase-sampled hits alone, equiangular vertices alone and every MIS
+    combination (guided or not) estimate the same integral."""
     scene = _scene([BIG_AREA, TETRA], g=0.5)
     bl = blockers_of(scene)
     one = camera_rays(scene, spp=1, jitter=False, blockers=bl)
@@ -248,7 +323,9 @@ def test_strategies_agree(seed=100):
     m_per = 6000
     rays = camera_rays(scene, spp=m_per, jitter=False, blockers=bl)
     res, nonzero = {}, []
-    for i, strat in enumerate(("mis", "nee", "phase")):
+    others = ("nee", "phase", "equiangular", "mis-free-flight", "mis-unguided",
+              "mis-directions")
+    for i, strat in enumerate(("mis", *others)):
         est = reference_pass(scene, rays, np.random.default_rng(seed + i), bl, strategy=strat)
         res[strat] = _stats(est, W * H)
         nonzero.append(np.count_nonzero(est[:, 0].reshape(W * H, -1), axis=1))
@@ -256,7 +333,7 @@ def test_strategies_agree(seed=100):
     mask &= np.min(nonzero, axis=0) >= 100
     assert mask.sum() >= 12
     m0, s0 = res["mis"]
-    for strat in ("nee", "phase"):
+    for strat in others:
         m1, s1 = res[strat]
         _assert_agree(m1, s1, m0, s0, mask=mask, label=strat)
     # Two scattering events: NEE alone has infinite variance, so only MIS vs phase.
@@ -318,13 +395,20 @@ def _naive_walk(scene, rays, rng, k_events):
 @pytest.mark.parametrize("k", [2, 3])
 def test_multiple_scatter_matches_naive_walk(k, seed=40):
     """K = 2, 3 (where NEE to a point light is useless as an oracle): MIS reference vs a
-    bounded-weight walk of different construction, with an occluder in the way."""
+    bounded-weight walk of different construction, with an occluder in the way.
+
+    The walk gets eight times the reference's rays: bounded is not light-tailed, and at the
+    reference's count its own standard error understates its error in the occluder's
+    shadow (with 2500 rays one of 48 pixels sat 4.1 standard errors below the truth, which
+    64 x 2500 rays pin down to 3.5 %; measured in issue 15's work).
+    """
     occ = (SphereOccluder(np.array([0.1, 0.35, 0.2]), 0.25),)
     scene = _scene([BIG_AREA], occ, g=0.4, sigma_s=1.2, sigma_a=0.2, kmin=k, kmax=k)
     bl = blockers_of(scene)
     rays = camera_rays(scene, spp=2500, jitter=False, blockers=bl)
     ref = _stats(reference_pass(scene, rays, np.random.default_rng(seed), bl), W * H)
-    naive = _stats(_naive_walk(scene, rays, np.random.default_rng(seed + 1), k), W * H)
+    many = camera_rays(scene, spp=20000, jitter=False, blockers=bl)
+    naive = _stats(_naive_walk(scene, many, np.random.default_rng(seed + 1), k), W * H)
     _assert_agree(*ref, *naive, label=f"K={k}")
 
 

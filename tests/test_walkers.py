@@ -76,7 +76,8 @@ def _flat(chunks):
 def test_every_compiled_family_is_covered():
     """The tests below run over the registry's compiled techniques: all of them."""
     assert {"plane-t1t2", "plane-t1t2-short", "plane-t1t3", "plane-t2t3-short", "cone",
-            "cylinder-short"} <= set(NAMES)
+            "cylinder-short", "ss-sphere", "ss-cone-short", "ss-disk", "ss-plane-uv",
+            "ss-plane-ut-short", "ss-plane-vt"} <= set(NAMES)
 
 
 @pytest.mark.parametrize("pinhole", [True, False], ids=["pinhole", "per-ray-origin"])
@@ -129,11 +130,12 @@ def test_walkers_find_hits_and_nonzero_values_somewhere():
         assert np.count_nonzero(vals[:, 0] == 0) > 0, name
 
 
+@pytest.mark.parametrize("spec", ["paper-multi", "paper-single"])
 @pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
-def test_accumulating_walker_adds_what_it_would_emit(name):
+def test_accumulating_walker_adds_what_it_would_emit(name, spec):
     scene, blockers, rays, paths = _setup(SCENES[[p.stem for p in SCENES].index(name)], True)
     ctx = PassContext(scene, blockers, 0.0, 0, 1500)
-    est = parse_estimator("paper-multi", scene)
+    est = parse_estimator(spec, scene)
     (group,) = est.groups
     mis = MisSet(group, group, "balance")
     for tech in group:
@@ -149,7 +151,9 @@ def test_accumulating_walker_adds_what_it_would_emit(name):
 MIS_SPECS = ["paper-multi", "mis-power:plane-t1t2-short+cone-short+cylinder+plane-t2t3",
              "mis:planes+cone+cylinder-short", "paper-multi~cone",
              "paper-multi~plane-t1t2~cylinder", "mis:planes+cone-short@0.3+cylinder@0.5",
-             "mis-power:planes@0.6+cone@0.2"]
+             "mis-power:planes@0.6+cone@0.2", "paper-single", "paper-single~ss-sphere",
+             "mis-power:ss-plane-uv+ss-plane-ut-short+ss-plane-vt+ss-cone-short+ss-disk"
+             "+ss-sphere"]
 
 
 @pytest.mark.parametrize("spec", MIS_SPECS)
@@ -222,7 +226,7 @@ def test_images_with_and_without_hits_materialized_agree():
 
     scene = load_scene(SCENES[[p.stem for p in SCENES].index("area_occluder")])
     scene = replace(scene, camera=replace(scene.camera, width=24, height=16))
-    for spec in ("planes", "paper-multi", "mis:cone+hyperboloid"):
+    for spec in ("planes", "paper-multi", "mis:cone+hyperboloid", "paper-single"):
         est = parse_estimator(spec, scene)
         a = render_pass(scene, est, 0, 3, RenderSettings(photons=150))
         b = render_pass(scene, est, 0, 3, RenderSettings(photons=150), record=PassRecord())

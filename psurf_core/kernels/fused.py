@@ -32,7 +32,7 @@ from ..scene import medium_row
 from ..techniques.base import Hits
 from .buffers import HitBuffers
 from .jit import ctrl_c_kept
-from .mis import weight_of
+from .mis import member_params, weight_of
 from .rays import ray_table
 from .shadow import BLOCKED, DEFER, blocker_table
 from .spans import hull_spans
@@ -110,11 +110,11 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
     cs, rt, rid = ray_table(rays, ctx.scene.camera.n_pixels)
     if np.count_nonzero(np.diff(cs)) <= 64:
         return None
-    w, key, shares = None, None, np.ones(1)
+    w, key, shares = None, None, np.ones((1, 2))
     if mis is not None:
         me = next(j for j, m in enumerate(mis.full_group) if m is tech)
         w, key = weight_of(mis.full_group, me, mis.weighting)
-        shares = mis.share_array()
+        shares = member_params(mis.full_group, mis.share_array())
     run = _Run(tech, fam, walker(fam, w, key), prims, paths, rays, ctx, blk, cs, rt, rid,
                shares, weighted=w is not None, emit=emit or (w is None and mis is not None))
     run.stats = stats

@@ -38,14 +38,14 @@ _WALKERS: dict = {}
 
 
 @inline
-def _unweighted(row, shares):
+def _unweighted(row, params):
     return 1.0
 
 
 def walker(fam, weight=None, key=None):
     """The compiled walker of family ``fam`` (a technique's ``compiled`` declaration,
     :class:`~psurf_core.techniques.base.Compiled`) with the MIS weight ``weight`` (an inline
-    function ``(row, shares) -> w`` from :func:`.mis.weight_of`; None: no MIS). ``key``
+    function ``(row, params) -> w`` from :func:`.mis.weight_of`; None: no MIS). ``key``
     names ``weight`` (equal keys: the same function), so each walker is built once per
     process."""
     k = (id(fam), key)
@@ -63,7 +63,7 @@ def _build(fam, weight):
 
     @kernel(nogil=True)
     def walk(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, geom, short, medium,
-             blockers, photon, kk, px, pw, pt, lights, shares, emit,
+             blockers, photon, kk, px, pw, pt, lights, params, emit,
              o_ray, o_prim, o_s, o_hit, o_val, o_w, o_st, n, lim,
              a_ray, a_val, na):  # pragma: no cover - compiled
         """Hits of spans ``i0 .. i1 - 1`` (module docstring); full rows from ``n`` (up to
@@ -98,7 +98,7 @@ def _build(fam, weight):
                         scal = contribution(G, ray.psi, s, ray.s_min, hit, short, medium)
                     w = 1.0
                     if mis:
-                        w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), shares)
+                        w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), params)
                     defer = st[0] == DEFER or st[1] == DEFER or st[2] == DEFER
                     if emit or defer:
                         if n >= lim:  # cannot happen: lim is the candidates x roots bound

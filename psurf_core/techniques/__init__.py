@@ -105,16 +105,16 @@ def _register_builtin() -> None:
              summary="photon cylinder [t2, ph1], axis x2 + h w2; K>=2")
     register("disk", multi("disks", "PhotonDisk"), has_short=True,
              summary="photon disk [t1, cos th1], half-plane through x1; K>=2")
-    register("hyperboloid", multi("revolutions", "Hyperboloid"), has_short=True,
+    register("hyperboloid", multi("hyperboloids", "Hyperboloid"), has_short=True,
              summary="hyperboloid [t1, ph2]: ray x1 + t w1 revolved about (x2, A3); K>=2")
-    register("torus", multi("revolutions", "Torus"),
+    register("torus", multi("tori", "Torus"),
              summary="torus [cos th1, ph2]: meridian circle revolved about (x2, A3); K>=2")
     # Single scattering (K = 1).
-    register("ss-sphere", multi("single", "SingleSphere"),
+    register("ss-sphere", multi("single_spheres", "SingleSphere"),
              summary="single scattering: sphere [cos th, ph] about the light point; K=1")
-    register("ss-cone", multi("single", "SingleCone"), has_short=True,
+    register("ss-cone", multi("single_cones", "SingleCone"), has_short=True,
              summary="single scattering: cone [t, ph] about the light axis / normal; K=1")
-    register("ss-disk", multi("single", "SingleDisk"), has_short=True,
+    register("ss-disk", multi("single_disks", "SingleDisk"), has_short=True,
              summary="single scattering: disk [t, cos th] (half-plane through the axis); K=1")
     register("ss-plane-uv", multi("single_planes", "SinglePlane", which="uv"),
              summary="single scattering: the area/mesh light translated by T w; K=1")

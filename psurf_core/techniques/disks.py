@@ -8,50 +8,184 @@ last direction, i.e. the radial unit ``e_r`` of ``w1`` about ``w2``; it integrat
 
 ``X = beta_1^- [rho(c1*) / p(ph1) = 2pi rho(c1*)] E(t1*) ss rho0 E(s*) s1* / (t1* |e_ph.psi|)``;
 short: ``t1* < T1`` and drop ``E(t1*)``.
+
+``Q = q_{<=w2} p(t2) (1/2pi) t1 |(w1 x w2) . psi| / s1^2`` (short: ``* E(t1)``).
+
+Each numpy function has its compiled twin (``@twin``) beneath it; see :mod:`.cones`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from ..path_record import Pdfs, photon_record
+from ..kernels.jit import twin
+from ..kernels.shadow import CLEAR, status
+from ..kernels.vec import madd, scale, sub
+from ..path_record import with_t1, with_w1
+from ..records import Vec, table
 from ..sampling import phase_value
-from .base import Hits, Primitives, Technique, clip_bounds, dot, on_ray, segments_clear
+from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
     SIN_MIN,
     beta1,
-    camera_vertex,
-    finish,
+    camera_term,
     gather,
     half_disk_bounds,
     q_to_w2,
     radial,
     select_photons,
-    transmittance,
     unit,
 )
 
+#: ``p(ph1)``: the azimuth is sampled uniformly (``Pdfs.ph``, a constant).
+P_PH = 1.0 / (2.0 * np.pi)
 
-def scaled_normal(w2: np.ndarray, w1: np.ndarray, t1: np.ndarray) -> np.ndarray:
+
+class DiskGeometry(NamedTuple):
+    """One photon disk (a row of its ``Primitives.data``)."""
+
+    x1: Vec  # the half-plane's corner: the photon's vertex x1
+    w2: Vec  # the half-plane's edge direction (th1 = 0)
+    e_r: Vec  # the photon's radial unit (w1 - c1 w2) / s1: inside the half-plane
+    e_ph: Vec  # the half-plane's normal w2 x e_r
+    T1: float  # the photon's flight from x1 (the short disk's radius)
+    beta: Vec  # beta_1^- (W)
+
+
+class DiskHit(NamedTuple):
+    """One disk hit (a row of its ``Hits.data``)."""
+
+    t1: float  # integrated distance x1 -> x0
+    w1: Vec  # rebuilt direction (x0 - x1) / t1
+    n_dot_psi: float  # |n . psi| = t1 |e_ph . psi| / s1*
+
+
+# ------------------------------------------------------------------------- geometry
+def scaled_normal(w2, w1, t1):
     """(H, 3) ``dx0/dt1 x dx0/dcos th1 = t1 (w1 x w2) / s1^2`` (up to sign); infinite-free
     only for ``s1 > 0`` (callers guard)."""
-    cr = np.cross(w1, w2)
+    cr = cross(w1, w2)
     with np.errstate(divide="ignore", invalid="ignore"):
         return (t1 / dot(cr, cr))[:, None] * cr
 
 
+@twin(scaled_normal)
+def _scaled_normal(w2, w1, t1):
+    cr = cross(w1, w2)
+    return scale(t1 / dot(cr, cr), cr)
+
+
+# ------------------------------------------------------------------------- Intersect
+def roots(G, o, psi):
+    """(1, N) ray distance of the ray's crossing of the half-plane's plane (NaN or inf:
+    none; the caller keeps finite roots on the ray)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (dot(G.x1 - o, G.e_ph) / dot(psi, G.e_ph))[None]
+
+
+@twin(roots)
+def _roots(G, o, psi):
+    return (dot(sub(G.x1, o), G.e_ph) / dot(psi, G.e_ph),)
+
+
+def accept(G, o, psi, s, short):
+    """Hits: on the photon's half-plane (``sin th1* = w1* . e_r > 0``; ``t1* < T1`` if
+    short), not grazing; their records (:class:`DiskHit`)."""
+    w1, t1 = unit(o + s[:, None] * psi - G.x1)
+    s1 = dot(w1, G.e_r)  # sin th1* >= 0 on the photon's half-plane
+    ok = (t1 > 0) & (s1 > 0)
+    if short:
+        ok &= t1 < G.T1
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        ndp = t1 * np.abs(dot(G.e_ph, psi)) / s1
+    return ok & (ndp > NDP_MIN) & np.isfinite(ndp), table(DiskHit, t1=t1, w1=w1, n_dot_psi=ndp)
+
+
+@twin(accept)
+def _accept(G, o, psi, s, short):
+    w1, t1 = unit(sub(madd(o, s, psi), G.x1))
+    s1 = dot(w1, G.e_r)
+    ok = t1 > 0.0 and s1 > 0.0 and (not short or t1 < G.T1)
+    ndp = t1 * abs(dot(G.e_ph, psi)) / s1
+    return ok and ndp > NDP_MIN and np.isfinite(ndp), DiskHit(t1, w1, ndp)
+
+
+# ------------------------------------------------------------------------- Evaluate
+def segments(G, x0, hit):
+    """The reconstructed path's one segment to test: ``x1 -> x0``."""
+    return [(G.x1, x0)]
+
+
+def visibility(G, x0, hit, medium, blockers):
+    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box)."""
+    return segments_clear(blockers, (G.x1, x0))
+
+
+@twin(visibility)
+def _visibility(G, x0, hit, medium, blockers):
+    return status(G.x1, x0, blockers), CLEAR, CLEAR
+
+
+def contribution(G, psi, s, s_min, hit, short, medium):
+    """``2pi rho(c1*) [E(t1*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight
+    (``rho / p(ph1)``; ``p(c1)`` is not in ``q``)."""
+    rho1 = phase_value(dot(G.w2, hit.w1), medium.g)
+    extra = 0.0 if short else hit.t1
+    return 2.0 * np.pi * rho1 * camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / \
+        hit.n_dot_psi
+
+
+@twin(contribution)
+def _contribution(G, psi, s, s_min, hit, short, medium):
+    rho1 = phase_value(dot(G.w2, hit.w1), medium.g)
+    extra = 0.0 if short else hit.t1
+    return 2.0 * np.pi * rho1 * camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / \
+        hit.n_dot_psi
+
+
+# ------------------------------------------------------------------------- MIS
+def reconstruct(rec, G, hit):
+    """The hit's full path: the photon's record with ``t1*`` and ``w1*``."""
+    return rec.with_(t1=hit.t1, w1=hit.w1)
+
+
+@twin(reconstruct)
+def _reconstruct(rec, G, hit):
+    return with_w1(with_t1(rec, hit.t1), hit.w1)
+
+
+def density(rec, short):
+    """Relative ``Q = q_{<=w2} p(t2) (1/2pi) t1 |(w1 x w2) . psi| / s1^2`` (short:
+    ``* E(t1)``)."""
+    n = scaled_normal(rec.w2, rec.w1, rec.t1)
+    with np.errstate(invalid="ignore"):
+        q = q_to_w2(rec) * rec.pdf.t2 * P_PH * np.abs(dot(n, rec.psi))
+    return q * rec.pdf.e1 if short else q
+
+
+@twin(density)
+def _density(rec, short):
+    n = scaled_normal(rec.w2, rec.w1, rec.t1)
+    q = q_to_w2(rec) * rec.pdf.t2 * P_PH * abs(dot(n, rec.psi))
+    return q * rec.pdf.e1 if short else q
+
+
+# ------------------------------------------------------------------------- Create
 class PhotonDisk(Technique):
     """The photon disk; ``short`` restricts ``t1* < T1`` (track-length)."""
 
     family = "disks"
     min_k = 2
+    compiled = Compiled(DiskGeometry, DiskHit, 1, roots, accept, visibility, contribution,
+                        segments, reconstruct, density)
 
     def __init__(self, short: bool):
         self.short = short
         self.name = "disk-short" if short else "disk"
 
-    # ------------------------------------------------------------------ Create
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)
         g = gather(paths, photon, K)
@@ -63,58 +197,9 @@ class PhotonDisk(Technique):
         lo, hi = half_disk_bounds(x1, w2, e_r, T1 if self.short else None)
         lo, hi = clip_bounds(ctx.scene, lo, hi)
         return Primitives(self.name, photon, K, lo, hi,
-                          dict(x1=x1, w2=w2, e_r=e_r, e_ph=np.cross(w2, e_r), T1=T1))
+                          table(DiskGeometry, x1=x1, w2=w2, e_r=e_r, e_ph=cross(w2, e_r),
+                                T1=T1, beta=beta1(paths, photon, K)))
 
-    # ------------------------------------------------------------------ Intersect
-    def intersect(self, prims, rays, ray, prim, ctx) -> Hits:
-        d = prims.data
-        x1, e_ph = d["x1"][prim], d["e_ph"][prim]
-        o, psi = rays.o[ray], rays.d[ray]
-        den = dot(psi, e_ph)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = dot(x1 - o, e_ph) / den
-            ok = np.isfinite(s) & on_ray(rays, ray, s)
-        ray, prim, s = ray[ok], prim[ok], s[ok]
-        w1, t1 = unit(rays.o[ray] + s[:, None] * rays.d[ray] - d["x1"][prim])
-        s1 = dot(w1, d["e_r"][prim])  # sin th1* >= 0 on the photon's half-plane
-        ok = (t1 > 0) & (s1 > 0)
-        if self.short:
-            ok &= t1 < d["T1"][prim]
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            ndp = t1 * np.abs(dot(d["e_ph"][prim], rays.d[ray])) / s1
-        keep = ok & (ndp > NDP_MIN) & np.isfinite(ndp)
-        return Hits(ray[keep], prim[keep], s[keep],
-                    dict(t1=t1[keep], w1=w1[keep], n_dot_psi=ndp[keep]))
-
-    # ------------------------------------------------------------------ Evaluate
-    def evaluate(self, hits, prims, paths, rays, ctx) -> np.ndarray:
-        scene = ctx.scene
-        p = hits.prim
-        d = prims.data
-        w1 = hits.data["w1"]
-        x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        valid = segments_clear(ctx.blockers, (d["x1"][p], x0))
-        # beta_1^- 2pi rho(c1*) [E(t1*)] ss rho0 E(s) / |n . psi|
-        rho1 = phase_value(dot(d["w2"][p], w1), scene.medium.phase.g)
-        scal = 2.0 * np.pi * rho1 * camera_vertex(scene, rays, hits, w1)
-        if not self.short:
-            scal = scal * transmittance(ctx, hits.data["t1"])
-        return finish(beta1(paths, prims.photon[p], prims.K[p]), scal, valid,
-                      hits.data["n_dot_psi"])
-
-    # ------------------------------------------------------------------ Reconstruct
-    def reconstruct(self, hits, prims, paths, rays, ctx):
-        p = hits.prim
-        rec = photon_record(paths, prims.photon[p], prims.K[p], ctx.scene, rays, hits.ray, hits.s)
-        return rec.with_(t1=hits.data["t1"], w1=hits.data["w1"])
-
-    def density(self, rec, ctx):
-        """Relative ``Q = q_{<=w2} p(t2) (1/2pi) t1 |(w1 x w2) . psi| / s1^2`` (short:
-        ``* E(t1)``)."""
-        pdf = Pdfs(rec, ctx.scene)
-        n = scaled_normal(rec.w2, rec.w1, rec.t1)
-        with np.errstate(invalid="ignore"):
-            q = q_to_w2(rec, pdf) * pdf.t2 * pdf.ph * np.abs(dot(n, rec.psi))
-        if self.short:
-            q = q * transmittance(ctx, rec.t1)
-        return q
+    def scaled_normal(self, rec):
+        """(H, 3) scaled normal on records ``rec`` (the inspector's)."""
+        return scaled_normal(rec.w2, rec.w1, rec.t1)

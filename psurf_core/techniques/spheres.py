@@ -7,22 +7,29 @@ and the scaled normal ``n = T1^2 w1*`` (``|dw/dcos x dw/dph| = 1``).
 
 ``X = beta_1^- rho(w2 . w1*) ss rho0 E(s*) / (st T1^2 |w1* . psi|)``. The sphere has no short
 variant: its only distance is sampled, so there is no transmittance to trade.
+
+``Q = q_{<=w2} p(t2) p(t1) t1^2 |w1 . psi|``.
+
+Each numpy function has its compiled twin (``@twin``) beneath it; see :mod:`.cones`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from ..path_record import Pdfs, photon_record
+from ..kernels.jit import twin
+from ..kernels.shadow import CLEAR, status
+from ..kernels.vec import madd, scale, sub
+from ..path_record import with_w1
+from ..records import Vec, table
 from ..sampling import phase_value
-from .base import Hits, Primitives, Technique, clip_bounds, dot, on_ray, segments_clear
+from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
     beta1,
-    camera_vertex,
-    closest_shift,
-    expand,
-    finish,
+    camera_term,
     gather,
     q_to_w2,
     quadratic_roots,
@@ -31,16 +38,126 @@ from .surface_common import (
 )
 
 
-def scaled_normal(w1: np.ndarray, t1: np.ndarray) -> np.ndarray:
+class SphereGeometry(NamedTuple):
+    """One photon sphere (a row of its ``Primitives.data``)."""
+
+    x1: Vec  # centre: the photon's vertex x1
+    w2: Vec  # the direction that arrived at x1 (the phase function's axis)
+    T1: float  # radius: the photon's sampled flight from x1
+    beta: Vec  # beta_1^- (W)
+
+
+class SphereHit(NamedTuple):
+    """One sphere hit (a row of its ``Hits.data``)."""
+
+    w1: Vec  # rebuilt direction (x0 - x1) / T1
+    n_dot_psi: float  # |n . psi| = T1^2 |w1 . psi|
+
+
+# ------------------------------------------------------------------------- geometry
+def scaled_normal(w1, t1):
     """(H, 3) ``dx0/dcos th1 x dx0/dph1 = t1^2 w1`` (up to sign)."""
     return (t1**2)[:, None] * w1
 
 
+@twin(scaled_normal)
+def _scaled_normal(w1, t1):
+    return scale(t1**2, w1)
+
+
+# ------------------------------------------------------------------------- Intersect
+def roots(G, o, psi):
+    """(2, N) ray distances where the ray meets the sphere (NaN: none), solved in
+    ``s - sc`` about the ray point closest to the centre (no cancellation)."""
+    sc = dot(G.x1 - o, psi)
+    b = o + sc[:, None] * psi - G.x1
+    return quadratic_roots(np.ones_like(sc), dot(b, psi), dot(b, b) - G.T1 * G.T1) + sc
+
+
+@twin(roots)
+def _roots(G, o, psi):
+    sc = dot(sub(G.x1, o), psi)
+    b = sub(madd(o, sc, psi), G.x1)
+    r0, r1 = quadratic_roots(1.0, dot(b, psi), dot(b, b) - G.T1 * G.T1)
+    return r0 + sc, r1 + sc
+
+
+def accept(G, o, psi, s, short):
+    """Which roots are hits (not grazing), and their records (:class:`SphereHit`)."""
+    w1, _ = unit(o + s[:, None] * psi - G.x1)
+    ndp = G.T1**2 * np.abs(dot(w1, psi))
+    return ndp > NDP_MIN, table(SphereHit, w1=w1, n_dot_psi=ndp)
+
+
+@twin(accept)
+def _accept(G, o, psi, s, short):
+    w1, _ = unit(sub(madd(o, s, psi), G.x1))
+    ndp = G.T1**2 * abs(dot(w1, psi))
+    return ndp > NDP_MIN, SphereHit(w1, ndp)
+
+
+# ------------------------------------------------------------------------- Evaluate
+def segments(G, x0, hit):
+    """The reconstructed path's one segment to test: ``x1 -> x0``."""
+    return [(G.x1, x0)]
+
+
+def visibility(G, x0, hit, medium, blockers):
+    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box)."""
+    return segments_clear(blockers, (G.x1, x0))
+
+
+@twin(visibility)
+def _visibility(G, x0, hit, medium, blockers):
+    return status(G.x1, x0, blockers), CLEAR, CLEAR
+
+
+def contribution(G, psi, s, s_min, hit, short, medium):
+    """``[rho(w2 . w1*) E(T1) / p(T1) = rho / st] ss rho0 E(s* - s_min) / |n . psi|`` per
+    unit photon weight."""
+    rho1 = phase_value(dot(G.w2, hit.w1), medium.g)
+    return rho1 / medium.sigma_t * camera_term(-dot(hit.w1, psi), s - s_min, 0.0, medium) / \
+        hit.n_dot_psi
+
+
+@twin(contribution)
+def _contribution(G, psi, s, s_min, hit, short, medium):
+    rho1 = phase_value(dot(G.w2, hit.w1), medium.g)
+    return rho1 / medium.sigma_t * camera_term(-dot(hit.w1, psi), s - s_min, 0.0, medium) / \
+        hit.n_dot_psi
+
+
+# ------------------------------------------------------------------------- MIS
+def reconstruct(rec, G, hit):
+    """The hit's full path: the photon's record with ``w1*``."""
+    return rec.with_(w1=hit.w1)
+
+
+@twin(reconstruct)
+def _reconstruct(rec, G, hit):
+    return with_w1(rec, hit.w1)
+
+
+def density(rec, short):
+    """Relative ``Q = q_{<=w2} p(t2) p(t1) t1^2 |w1 . psi|``."""
+    n = scaled_normal(rec.w1, rec.t1)
+    return q_to_w2(rec) * rec.pdf.t2 * rec.pdf.t1 * np.abs(dot(n, rec.psi))
+
+
+@twin(density)
+def _density(rec, short):
+    n = scaled_normal(rec.w1, rec.t1)
+    return q_to_w2(rec) * rec.pdf.t2 * rec.pdf.t1 * abs(dot(n, rec.psi))
+
+
+# ------------------------------------------------------------------------- Create
 class PhotonSphere(Technique):
     """The photon sphere (long only)."""
 
     family = "spheres"
     min_k = 2
+    compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
+                        segments, reconstruct, density)
 
     def __init__(self, short: bool = False):
         if short:
@@ -48,55 +165,15 @@ class PhotonSphere(Technique):
         self.short = False
         self.name = "sphere"
 
-    # ------------------------------------------------------------------ Create
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)
         g = gather(paths, photon, K)
         x1, T1 = g["x1"], g["T1"]
         lo, hi = clip_bounds(ctx.scene, x1 - T1[:, None], x1 + T1[:, None])
-        return Primitives(self.name, photon, K, lo, hi, dict(x1=x1, w2=g["w2"], T1=T1))
+        return Primitives(self.name, photon, K, lo, hi,
+                          table(SphereGeometry, x1=x1, w2=g["w2"], T1=T1,
+                                beta=beta1(paths, photon, K)))
 
-    # ------------------------------------------------------------------ Intersect
-    def intersect(self, prims, rays, ray, prim, ctx) -> Hits:
-        d = prims.data
-        x1, T1 = d["x1"][prim], d["T1"][prim]
-        o, psi = rays.o[ray], rays.d[ray]
-        # Solve in u = s - s_c about the ray point closest to the centre (no cancellation).
-        sc = closest_shift(o, psi, x1)
-        b = o + sc[:, None] * psi - x1
-        roots = quadratic_roots(np.ones_like(sc), dot(b, psi), dot(b, b) - T1 * T1) + sc
-        ray, prim, s, _ = expand(ray, prim, roots)
-        with np.errstate(invalid="ignore"):
-            ok = np.isfinite(s) & on_ray(rays, ray, s)
-        ray, prim, s = ray[ok], prim[ok], s[ok]
-        w1, _ = unit(rays.o[ray] + s[:, None] * rays.d[ray] - d["x1"][prim])
-        ndp = d["T1"][prim] ** 2 * np.abs(dot(w1, rays.d[ray]))
-        keep = ndp > NDP_MIN
-        return Hits(ray[keep], prim[keep], s[keep], dict(w1=w1[keep], n_dot_psi=ndp[keep]))
-
-    # ------------------------------------------------------------------ Evaluate
-    def evaluate(self, hits, prims, paths, rays, ctx) -> np.ndarray:
-        scene = ctx.scene
-        med = scene.medium
-        p = hits.prim
-        d = prims.data
-        w1 = hits.data["w1"]
-        x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        valid = segments_clear(ctx.blockers, (d["x1"][p], x0))
-        # beta_1^- [rho(w2.w1*) E(T1) / p(T1) = rho / st] ss rho0 E(s) / (T1^2 |w1*.psi|)
-        scal = (phase_value(dot(d["w2"][p], w1), med.phase.g) / med.sigma_t
-                * camera_vertex(scene, rays, hits, w1))
-        return finish(beta1(paths, prims.photon[p], prims.K[p]), scal, valid,
-                      hits.data["n_dot_psi"])
-
-    # ------------------------------------------------------------------ Reconstruct
-    def reconstruct(self, hits, prims, paths, rays, ctx):
-        p = hits.prim
-        rec = photon_record(paths, prims.photon[p], prims.K[p], ctx.scene, rays, hits.ray, hits.s)
-        return rec.with_(w1=hits.data["w1"])
-
-    def density(self, rec, ctx):
-        """Relative ``Q = q_{<=w2} p(t2) p(t1) t1^2 |w1 . psi|``."""
-        pdf = Pdfs(rec, ctx.scene)
-        n = scaled_normal(rec.w1, rec.t1)
-        return q_to_w2(rec, pdf) * pdf.t2 * pdf.t1 * np.abs(dot(n, rec.psi))
+    def scaled_normal(self, rec):
+        """(H, 3) scaled normal on records ``rec`` (the inspector's)."""
+        return scaled_normal(rec.w1, rec.t1)

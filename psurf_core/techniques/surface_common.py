@@ -27,7 +27,7 @@ from ..kernels.shadow import BLOCKED, CLEAR, status
 from ..kernels.vec import norm, scale, sub
 from ..path_record import PathRecord, Pdfs
 from ..sampling import phase_value
-from .base import PassContext, Technique, camera_transmittance, cross, dot
+from .base import PassContext, Technique, cross, dot
 
 #: ``|n . psi|`` at or below this is a measure-zero grazing hit: dropped, so that no division
 #: by zero (or an overflow to inf) can reach the image.
@@ -263,27 +263,7 @@ def _quadratic_roots(a, h, c):
     return (r0 if np.isfinite(r0) else np.nan), (r1 if np.isfinite(r1) else np.nan)
 
 
-def closest_shift(o: np.ndarray, d: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """(H,) ``s`` of the point of ray ``o + s d`` closest to ``centre``; solving for
-    ``s - shift`` instead of ``s`` keeps the quadratics' coefficients well conditioned."""
-    return dot(centre - o, d)
-
-
-def expand(ray: np.ndarray, prim: np.ndarray, roots: np.ndarray):
-    """Flatten (R, N) per-pair roots into parallel ``(ray, prim, root, slot)`` arrays."""
-    n_r = roots.shape[0]
-    return (np.tile(ray, n_r), np.tile(prim, n_r), roots.reshape(-1),
-            np.repeat(np.arange(n_r), ray.shape[0]))
-
-
 # ------------------------------------------------------------------------- evaluate
-def camera_vertex(scene, rays, hits, w1: np.ndarray) -> np.ndarray:
-    """(H,) ``ss rho(-w1 . psi) E(s)``: the scattering at ``x0 = y(s)`` towards the camera."""
-    med = scene.medium
-    rho0 = phase_value(-dot(w1, rays.d[hits.ray]), med.phase.g)
-    return med.sigma_s * rho0 * camera_transmittance(scene, rays, hits.ray, hits.s)
-
-
 def camera_term(mu, ds, extra, medium):
     """``ss rho(mu) E(ds + extra)``: the scattering at ``x0 = y(s)`` towards the camera
     (``mu = -w1 . psi``), the camera segment's transmittance over ``ds = s - s_min`` and a
@@ -295,13 +275,6 @@ def camera_term(mu, ds, extra, medium):
 @twin(camera_term)
 def _camera_term(mu, ds, extra, medium):
     return medium.sigma_s * phase_value(mu, medium.g) * np.exp(-medium.sigma_t * (ds + extra))
-
-
-def finish(beta: np.ndarray, scal: np.ndarray, valid: np.ndarray, ndp: np.ndarray):
-    """(H, 3) ``beta * scal / ndp`` where ``valid``, else 0 (``ndp > NDP_MIN`` on hits)."""
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        v = np.where(valid & (ndp > NDP_MIN), scal / ndp, 0.0)
-    return beta * v[:, None]
 
 
 # ------------------------------------------------------------------------- densities
@@ -317,9 +290,6 @@ def _q_to_w2(rec, pdf=None):
     return (rec.pdf.t3 if rec.K >= 3 else 1.0) * rec.pdf.w2
 
 
-def transmittance(ctx: PassContext, *ts) -> np.ndarray:
-    """``exp(-st sum(ts))``: the short variants' extra density factor."""
-    return np.exp(-ctx.scene.medium.sigma_t * sum(ts))
 
 
 def plane_solve(o, u, v, c, psi):
@@ -350,69 +320,3 @@ def _plane_solve(o, u, v, c, psi):
     m = scale(-1.0, psi)
     return (dot(r, cross(v, m)) * inv, dot(u, cross(r, m)) * inv, dot(u, cross(v, r)) * inv,
             abs(det))
-
-
-def quartic_real_roots(coef: np.ndarray, newton: int = 4) -> np.ndarray:
-    """Real roots in ``[-1, 1]`` of quartics ``c4 u^4 + ... + c0`` (the torus, spec 3.3).
-
-    Companion-matrix eigenvalues (batched ``numpy.linalg.eigvals``), then Newton polishing on
-    the original polynomial. A vanishing ``c4`` is replaced by a tiny one: that only adds a
-    root far outside ``[-1, 1]`` and Newton removes its effect on the others.
-
-    Parameters
-    ----------
-    coef : (5, N) float
-        Coefficients, highest degree first.
-
-    Returns
-    -------
-    (4, N) float
-        NaN where a slot holds no real root in the interval.
-    """
-    n = coef.shape[1]
-    out = np.full((4, n), np.nan)
-    scale = np.max(np.abs(coef), axis=0)
-    ok = np.isfinite(scale) & (scale > 0)
-    c = coef[:, ok] / scale[ok]
-    c4 = np.where(np.abs(c[0]) < 1e-13, np.where(c[0] < 0, -1e-13, 1e-13), c[0])
-    comp = np.zeros((c.shape[1], 4, 4))
-    comp[:, 0, :] = -(c[1:] / c4).T
-    comp[:, 1, 0] = comp[:, 2, 1] = comp[:, 3, 2] = 1.0
-    ev = np.linalg.eigvals(comp).T if c.shape[1] else np.zeros((4, 0), complex)
-    u = np.where((np.abs(ev.imag) < 1e-4) & (np.abs(ev.real) < 1.01), ev.real, np.nan)
-    d = c[:4] * np.array([4.0, 3.0, 2.0, 1.0])[:, None]
-    with np.errstate(all="ignore"):
-        for _ in range(newton):
-            p = (((c[0] * u + c[1]) * u + c[2]) * u + c[3]) * u + c[4]
-            dp = ((d[0] * u + d[1]) * u + d[2]) * u + d[3]
-            u = np.where(dp != 0, u - p / dp, u)
-        p = (((c[0] * u + c[1]) * u + c[2]) * u + c[3]) * u + c[4]
-        # Newton may have wandered off a complex pair: keep only true roots in [-1, 1].
-        good = (np.abs(p) < 1e-9) & (np.abs(u) <= 1.0)
-    out[:, ok] = np.where(good, u, np.nan)
-    return out
-
-
-def square_quadratic(c):
-    """(5, N) coefficients (highest first) of the square of (3, N) quadratics."""
-    a, b, e = c
-    return np.stack([a * a, 2 * a * b, b * b + 2 * a * e, 2 * b * e, e * e])
-
-
-def revolve(A, src, dst):
-    """The rotation about unit ``A`` taking the radial part of ``src`` onto that of ``dst``.
-
-    Returns
-    -------
-    rotate : callable (H, 3) -> (H, 3)
-    ok : (H,) bool
-        Both radial parts are non-zero (otherwise the rotation is undefined).
-    """
-    e1, ne = unit(src - dot(src, A)[:, None] * A)
-    f1, nf = unit(dst - dot(dst, A)[:, None] * A)
-    e2, f2 = np.cross(A, e1), np.cross(A, f1)
-
-    def rotate(v):
-        return (dot(v, A)[:, None] * A + dot(v, e1)[:, None] * f1 + dot(v, e2)[:, None] * f2)
-
-    return rotate, (ne > 0) & (nf > 0)

@@ -40,6 +40,10 @@ def describe_difference(key: str, saved, current, scene_file: str) -> str:
         return f"a mesh file of {scene_file} changed since the checkpoint was made"
     if key == "resolution":
         return f"the checkpoint is a {saved} image, the scene renders {current}"
+    if key == "reference_sampler":
+        return (f"the checkpoint was rendered by another version of the reference path tracer "
+                f"(sampler {saved or 'before issue 15'}, this psurf's is {current}); render "
+                f"it again without --resume")
     flag = IDENTITY_FLAGS.get(key, key)
 
     def show(v):
@@ -52,7 +56,8 @@ def describe_difference(key: str, saved, current, scene_file: str) -> str:
 class Checkpointer:
     """Keeps a consistent snapshot of the accumulator after every pass and writes it.
 
-    The snapshot (``n``, copies of ``mean`` and ``m2``) is replaced in one assignment, so a
+    The snapshot (a copy of the accumulator: ``n``, ``mean``, ``m2`` and, when it keeps them,
+    the higher moments and peak) is replaced in one assignment, so a
     Ctrl-C that lands anywhere (even inside ``Welford.add`` of the next pass) leaves it
     consistent; the interrupt handler then saves it.
     """
@@ -64,33 +69,93 @@ class Checkpointer:
         self.every = every
         self.seconds_before = seconds_before
         self.extra = extra
-        self.snapshot = (acc.n, acc.mean.copy(), acc.m2.copy(), seconds_before)
+        self.snapshot = (acc.copy(), seconds_before)
         self.on_disk = on_disk  # pass count of the checkpoint file now in DIR (None: none)
         self.last_write = time.monotonic()
 
     @property
     def passes(self) -> int:
-        return self.snapshot[0]
+        return self.snapshot[0].n
 
     def on_pass(self, i, acc, elapsed) -> None:
-        self.snapshot = (acc.n, acc.mean.copy(), acc.m2.copy(), self.seconds_before + elapsed)
+        self.snapshot = (acc.copy(), self.seconds_before + elapsed)
         if time.monotonic() - self.last_write >= self.every:
             self.write()
 
     def write(self) -> bool:
         """Save the snapshot unless the file already holds it (or it has no pass)."""
         from psurf_core import __version__
-        from psurf_core.accumulate import Welford
         from psurf_core.checkpoint import save_checkpoint
 
-        n, mean, m2, seconds = self.snapshot
-        if n == 0 or n == self.on_disk:
+        acc, seconds = self.snapshot
+        if acc.n == 0 or acc.n == self.on_disk:
             return False
-        save_checkpoint(self.directory, Welford(n, mean, m2), self.identity, seconds=seconds,
+        save_checkpoint(self.directory, acc, self.identity, seconds=seconds,
                         version=__version__, extra=self.extra)
-        self.on_disk = n
+        self.on_disk = acc.n
         self.last_write = time.monotonic()
         return True
+
+
+class CheckpointWriteError(Exception):
+    """Writing ``DIR/checkpoint.npz`` failed (``error``: the ``OSError``); the file in DIR is
+    still the previous checkpoint (``ckpt.on_disk`` passes), or none."""
+
+    def __init__(self, ckpt: Checkpointer, error: OSError):
+        super().__init__(ckpt.directory, error)
+        self.ckpt, self.error = ckpt, error
+
+    def line(self, out: str | None = None) -> str:
+        """The one line saying what failed, what is kept and how to go on."""
+        from psurf_core.checkpoint import checkpoint_path
+
+        d = self.ckpt.directory
+        why = self.error.strerror or " ".join(str(self.error).split()) or "OSError"
+        if not os.path.isdir(d):
+            kept = f"the checkpoint directory {d} no longer exists"
+        elif self.ckpt.on_disk:
+            kept = (f"{d} still holds the previous checkpoint "
+                    f"({plural(self.ckpt.on_disk, 'pass')}; continue with --resume {d} once it "
+                    f"can be written)")
+        else:
+            kept = "no checkpoint was saved"
+        tail = f"; {out} not written" if out else ""
+        return f"cannot write the checkpoint {checkpoint_path(d)} ({why}); {kept}{tail}"
+
+
+def write_checkpoint(ckpt: Checkpointer, write=None) -> bool:
+    """``ckpt.write()`` (or ``write()``), an ``OSError`` raised as
+    :class:`CheckpointWriteError`."""
+    try:
+        return (write or ckpt.write)()
+    except OSError as e:
+        raise CheckpointWriteError(ckpt, e) from e
+
+
+def lock_checkpoint_dir(flag: str, directory: str):
+    """Hold an exclusive lock on ``directory`` for this process (an open descriptor, released
+    when the process ends, even by ``kill -9``), then remove temporary files that a killed
+    writer left there. Returns the descriptor (keep it), or None where locks do not exist."""
+    from psurf_core.checkpoint import CHECKPOINT_FILE
+
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        return None
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise CliError(f"{flag} {directory}: another psurf render is writing checkpoints "
+                       f"there") from None
+    for name in os.listdir(directory):
+        if name.startswith(f".{CHECKPOINT_FILE}.") and name.endswith(".tmp"):
+            try:
+                os.remove(os.path.join(directory, name))
+            except OSError:
+                pass
+    return fd
 
 
 def checkpoint_dir_ok(flag: str, directory: str, must_be_empty: bool) -> None:

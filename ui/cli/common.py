@@ -280,12 +280,27 @@ def _tmp_name(path: str) -> str:
     return os.path.join(folder, f".{stem}.{os.getpid()}.tmp{ext}")
 
 
+class OutputWriteError(Exception):
+    """An output could not be written (disk full, read-only, a folder that vanished):
+    ``path`` is the output, ``error`` the ``OSError``; ``str()`` is one line."""
+
+    def __init__(self, path: str, error: OSError):
+        super().__init__(path, error)
+        self.path, self.error = path, error
+
+    def __str__(self) -> str:
+        why = self.error.strerror or " ".join(str(self.error).split()) or "OSError"
+        return f"cannot write {self.path} ({why})"
+
+
 def write_all(jobs: list) -> None:
     """Write every ``(path, writer)`` to a temporary name, then move all into place.
 
-    A failure leaves none of the outputs (nor temporary files) behind.
+    A failure leaves none of the outputs (nor temporary files) behind and raises
+    :class:`OutputWriteError` naming the output.
     """
     temps = []
+    path = jobs[0][0] if jobs else ""
     try:
         for path, writer in jobs:
             tmp = _tmp_name(path)
@@ -293,10 +308,13 @@ def write_all(jobs: list) -> None:
             writer(tmp)
         for tmp, path in temps:
             os.replace(tmp, path)
+    except OSError as e:
+        raise OutputWriteError(path, e) from e
     finally:
         for tmp, _ in temps:
-            if os.path.exists(tmp):
-                os.remove(tmp)
+            with contextlib.suppress(OSError):
+                if os.path.exists(tmp):
+                    os.remove(tmp)
 
 
 def npz_writer(data: dict):

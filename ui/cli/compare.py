@@ -34,6 +34,7 @@ from .common import (
     with_resolution,
     with_scatter,
 )
+from .limits import check_memory, load_scene_within, probe_writable
 from .parallel import add_dask_flags
 
 #: Defaults of ``compare`` (photons per pass: small enough that the slowest photon-surface
@@ -136,7 +137,9 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--radius-shrink", type=shrink, default=1.0, metavar="ALPHA",
                    help="progressive radius reduction alpha in (0, 1] (default 1: fixed)")
     p.add_argument("--memory-budget", type=positive_int, default=None, metavar="MIB",
-                   help="memory bound of the chunked ray x primitive work in MiB")
+                   help="memory limit of the run in MiB (checked before rendering; it also "
+                        "sizes the chunks of the ray x primitive work; default: the memory "
+                        "available)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output directory (created if missing)")
     add_dask_flags(p)
@@ -196,6 +199,26 @@ def _out_dir(path: str) -> None:
         raise _Bad(f"--out {path}: cannot create directory ({e.strerror})") from None
     if not os.access(path, os.W_OK):
         raise _Bad(f"--out {path}: directory is not writable")
+    probe_writable("--out", path, path)  # a read-only mount, a full disk
+
+
+def _check_memory(args, scene, ests, settings, photons, render_reference: bool) -> None:
+    """The largest estimator's pass work and every image the study keeps, against
+    --memory-budget (or the memory available), before anything renders."""
+    from dataclasses import replace
+
+    from psurf_core.budget import render_need
+    from psurf_core.estimators import parse_estimator
+
+    runs = list(ests) + ([parse_estimator("reference", scene)] if render_reference else [])
+    sets = [replace(settings, photons=p) for p in photons] + [settings] * render_reference
+    # Kept: the reference's mean and variance, each estimator's, and the runs' final images
+    # (with their stack for the spread across runs).
+    kept = 2 + 2 * len(ests) + 2 * args.runs
+    need = render_need(scene, None, None, estimators=runs, settings_list=sets, jobs=args.jobs,
+                       local_workers=args.workers or 0, remote=args.dask is not None,
+                       kept_images=kept)
+    check_memory(need, args.memory_budget, what="the comparison")
 
 
 def _progress():
@@ -247,14 +270,14 @@ def _command_line() -> str | None:
 def run_compare(args) -> int:
     """Run ``compare``; returns 0, or 2 after one ``psurf: error:`` line."""
     from psurf_core import study as st
-    from psurf_core.distributed import DistributedError
+    from psurf_core.distributed import DistributedError, WorkersLostError
     from psurf_core.scene import SceneError
-    from psurf_core.scene_io import load_scene
 
     try:
         _check_out(args.out)
         try:
-            scene = with_resolution(load_scene(args.scene), args.resolution)
+            scene = with_resolution(load_scene_within(args.scene, args.memory_budget),
+                                    args.resolution)  # meshes checked before loading
         except SceneError as e:
             raise _Bad(str(e)) from None
         scene = with_scatter(scene, args.min_scatter, args.max_scatter)
@@ -275,6 +298,7 @@ def run_compare(args) -> int:
             raise _Bad(f"--photons: give one count or one per estimator ({len(ests)}), got "
                        f"{len(args.photons)}")
         photons = args.photons * len(ests) if len(args.photons) == 1 else args.photons
+        _check_memory(args, scene, ests, settings, photons, reference is None)
         _out_dir(args.out)
     except (_Bad, CliError) as e:
         return fail(str(e))
@@ -306,6 +330,9 @@ def run_compare(args) -> int:
                                    runner=partial(render_parallel, pool=pool), **kw)
         else:
             study = st.compare(scene, ests, args.time, **kw)
+    except WorkersLostError as e:  # mid-run: not a bad input
+        fail(f"--{'dask' if args.dask is not None else 'workers'}: {e}")
+        return 1
     except DistributedError as e:
         return fail(f"--{'dask' if args.dask is not None else 'workers'}: {e}")
     except (SceneError, ValueError) as e:
@@ -330,6 +357,8 @@ def run_compare(args) -> int:
     for row in study["results"]:
         for note in row["notes"]:
             print(f"{PROG}: note: {row['estimator']}: {note}", file=sys.stderr)
+    for warning in study.get("warnings", []):
+        print(f"{PROG}: warning: {warning}", file=sys.stderr)
     for p in written:
         print(p)
     return 0

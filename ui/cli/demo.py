@@ -31,7 +31,6 @@ import textwrap
 from .common import (
     CliError,
     load_reference,
-    load_scene,
     nonneg_int,
     note,
     npz_writer,
@@ -44,6 +43,7 @@ from .common import (
     with_resolution,
     write_all,
 )
+from .limits import check_memory, load_scene_within
 
 _ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 #: The showcase: the scene, the comparison (the baseline first: ratios are relative to it),
@@ -135,6 +135,18 @@ def _specs(args, scene) -> list:
     return specs
 
 
+def _check_memory(scene, specs: list, photons: int) -> None:
+    """The window (its estimators, breakdown stacks, the stages' record of a whole pass, one
+    background process) must fit in the memory available; the headless run needs less (no
+    background process) and is held to the same bound."""
+    from psurf_core import RenderSettings, parse_estimator
+    from psurf_core.budget import progressive_need
+
+    ests = [parse_estimator(s, scene) for s in specs]
+    check_memory(progressive_need(scene, ests, RenderSettings(photons=photons), workers=1,
+                                  breakdown=True, inspect=True), None, what="the demo")
+
+
 def bundled_reference(scene_path: str) -> str | None:
     """``<scene>_reference.npz`` beside the scene file, when there is one."""
     stem, _ = os.path.splitext(os.path.abspath(scene_path))
@@ -174,8 +186,10 @@ def _interactive_run():
 def cmd_demo(args) -> int:
     """Run ``demo``; 0, or raises CliError (exit 2)."""
     scene_path = args.scene or DEMO_SCENE
-    scene = with_resolution(load_scene(scene_path), args.resolution)
+    # Meshes are checked before they load; the sizes before anything is allocated.
+    scene = with_resolution(load_scene_within(scene_path, None), args.resolution)
     specs = _specs(args, scene)
+    _check_memory(scene, specs, args.photons)
     cam = scene.camera
     if args.pixel is not None and not (args.pixel[0] < cam.width and args.pixel[1] < cam.height):
         x, y = args.pixel
@@ -280,6 +294,8 @@ def _headless(scene_path: str, scene, specs: list, ref, args) -> int:
     prog.close()
     for p in written:
         print(p)
+    print("web page (the app for a class, one session per browser tab): "
+          f"{_serve_command(scene_path, specs)}, then open http://127.0.0.1:8080/")
     rows = prog.summary(reference)
     for run, row in zip(prog.runs, rows, strict=True):
         line = (f"{run.spec}: {plural(run.acc.n, 'pass')} in {run.seconds:.1f} s "
@@ -296,6 +312,17 @@ def _headless(scene_path: str, scene, specs: list, ref, args) -> int:
         print(f"reference {os.path.basename(ref.source)}: {ref.estimator}, "
               f"{plural(ref.passes, 'pass')}; its own noise adds ~{floor:.2g} to every relMSE")
     return 0
+
+
+def _serve_command(scene_path: str, specs: list) -> str:
+    """The ``serve`` command line that opens this comparison in a browser."""
+    from ui.web import scenes
+
+    name = os.path.basename(scene_path)
+    bundled = name in scenes.bundled() and os.path.samefile(scenes.bundled_path(name),
+                                                             scene_path)
+    return (f"python app.py serve {name if bundled else scene_path} --estimators "
+            f"{','.join(specs)} --port 8080")
 
 
 def _title(scene_path, scene, specs, ref, args) -> str:

@@ -11,7 +11,16 @@ from __future__ import annotations
 
 import argparse
 
-from .common import positive_int
+from .common import note, positive_int
+
+#: New pools a ``--jobs`` render starts after worker processes died, before it gives up.
+JOB_RESTARTS = 3
+
+
+class WorkersLost(Exception):
+    """Mid-run, the workers a render needs are gone (every Dask worker, a pass lost with its
+    workers, the scheduler, or a ``--jobs`` process killed): one line, exit code 1; the
+    passes merged before it are kept (``render`` saves them to its checkpoint)."""
 
 
 def _address(text: str) -> str:
@@ -51,21 +60,60 @@ def maybe_distributed(args, scene, estimator, settings, *, passes=None, time_bud
     address, workers = getattr(args, "dask", None), getattr(args, "workers", None)
     jobs = getattr(args, "jobs", 1) or 1
     if address is None and workers is None and jobs > 1:
-        from psurf_core.parallel import render_parallel
-
-        return render_parallel(scene, estimator, settings, passes=passes,
-                               time_budget=time_budget, seed=seed, jobs=jobs,
-                               accumulator=accumulator, on_pass=on_pass)
+        return _render_jobs(scene, estimator, settings, jobs=jobs, passes=passes,
+                            time_budget=time_budget, seed=seed, accumulator=accumulator,
+                            on_pass=on_pass)
     if address is None and workers is None:
         return None
-    from psurf_core.distributed import DistributedError, render_distributed
+    from psurf_core.distributed import DistributedError, WorkersLostError, render_distributed
 
     try:
         return render_distributed(scene, estimator, settings, passes=passes,
                                   time_budget=time_budget, seed=seed, address=address,
                                   workers=workers, accumulator=accumulator, on_pass=on_pass)
+    except WorkersLostError as e:
+        flag = "--dask" if address is not None else "--workers"
+        raise WorkersLost(f"{flag}: {e}") from None
     except DistributedError as e:
         flag = "--dask" if address is not None else "--workers"
         if error is None:
             raise
         raise error(f"{flag}: {e}") from None
+
+
+def _render_jobs(scene, estimator, settings, *, jobs, passes, time_budget, seed, accumulator,
+                 on_pass):
+    """:func:`psurf_core.parallel.render_parallel`, continued in a new pool when a worker
+    process dies (killed, out of memory): the passes merged so far are kept and the lost
+    ones rendered again, so the image is the same bit for bit; after :data:`JOB_RESTARTS`
+    new pools, :class:`WorkersLost`."""
+    import time
+    from concurrent.futures.process import BrokenProcessPool
+
+    from psurf_core.accumulate import Welford
+    from psurf_core.parallel import render_parallel
+
+    cam = scene.camera
+    acc = accumulator if accumulator is not None else Welford.empty((cam.height, cam.width, 3))
+    t0 = time.perf_counter()
+    for attempt in range(JOB_RESTARTS + 1):
+        offset = time.perf_counter() - t0
+        left = None if time_budget is None else max(time_budget - offset, 1e-9)
+
+        def shifted(i, a, elapsed, offset=offset):
+            return on_pass(i, a, offset + elapsed) if on_pass is not None else None
+
+        try:
+            result = render_parallel(scene, estimator, settings, passes=passes,
+                                     time_budget=left, seed=seed, jobs=jobs, accumulator=acc,
+                                     on_pass=shifted)
+        except BrokenProcessPool:
+            if attempt == JOB_RESTARTS:
+                raise WorkersLost(f"--jobs: worker processes died {attempt + 1} times (killed, "
+                                  f"or out of memory); {acc.n} passes were merged") from None
+            note(f"--jobs: a worker process died (killed, or out of memory); a new pool "
+                 f"continues from pass {acc.n}")
+            continue
+        result.seconds = time.perf_counter() - t0
+        return result
+    raise AssertionError("unreachable")

@@ -28,7 +28,6 @@ from .common import (
     Animation,
     CliError,
     check_output,
-    load_scene,
     nonneg_int,
     pair,
     parse_estimator_flag,
@@ -39,6 +38,7 @@ from .common import (
     with_resolution,
     write_all,
 )
+from .limits import check_memory, load_scene_within, probe_writable
 
 MODES = ("render", "techniques", "bounces")
 DEFAULT_PHOTONS = 1000
@@ -73,6 +73,10 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="picture size in pixels (default: {},{})".format(*DEFAULT_SIZE))
     p.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
                    help="render at W x H pixels instead of the scene's resolution")
+    p.add_argument("--memory-budget", type=positive_int, default=None, metavar="MIB",
+                   help="memory limit of the run in MiB (it also bounds the chunked ray x "
+                        "primitive work; default: the memory available, and chunks of "
+                        "psurf_core.constants.DEFAULT_MEMORY_BUDGET_MIB)")
     p.add_argument("--technique", default=None, metavar="NAME",
                    help="bounces: show this technique per K (unweighted vs weighted)")
     p.add_argument("--k", type=positive_int, default=None, metavar="K",
@@ -131,7 +135,7 @@ def add_record_parsers(sub) -> None:
 
 
 def _scene_and_estimators(args, specs, need_breakdown: bool):
-    scene = with_resolution(load_scene(args.scene), args.resolution)
+    scene = with_resolution(load_scene_within(args.scene, args.memory_budget), args.resolution)
     flag = "--estimators" if len(specs) > 1 else "--estimator"
     ests = [parse_estimator_flag(s, scene, flag) for s in specs]
     photon = [e for e in ests if not e.reference]
@@ -151,6 +155,27 @@ def _scene_and_estimators(args, specs, need_breakdown: bool):
             raise CliError(f"--k {args.k}: the breakdown of {photon[0].spec} starts at "
                            f"K={lay.k_min}")
     return scene, ests
+
+
+def _settings(args):
+    from psurf_core.render import RenderSettings
+
+    kw = {"photons": args.photons}
+    if args.memory_budget is not None:
+        kw["memory_budget_mib"] = args.memory_budget
+    return RenderSettings(**kw)
+
+
+def _check_memory(args, scene, ests, settings, breakdown: bool, what: str) -> None:
+    """Every estimator's accumulator (and breakdown stacks), one pass, the picture: against
+    --memory-budget or the memory available, before anything renders."""
+    from dataclasses import replace
+
+    from psurf_core.budget import picture_bytes, progressive_need
+
+    need = progressive_need(scene, ests, settings, workers=0, breakdown=breakdown)
+    need = replace(need, extra=need.extra + (picture_bytes(*args.size),))
+    check_memory(need, args.memory_budget, what=what)
 
 
 def _writer_check(out: str) -> str:
@@ -186,15 +211,17 @@ def _offscreen():
 
 def run_record(args) -> int:
     """Run ``record``; returns 0, or raises CliError (exit 2)."""
-    from psurf_core.render import RenderSettings
 
     specs = [args.estimator] if args.estimator is not None else args.estimators
     ext = _writer_check(args.out)
+    probe_writable("--out", args.out, os.path.dirname(os.path.abspath(args.out)))
     scene, ests = _scene_and_estimators(args, specs, args.mode != "render")
     cam = scene.camera
     if args.pixel is not None and not (args.pixel[0] < cam.width and args.pixel[1] < cam.height):
         raise CliError(f"--pixel {args.pixel[0]},{args.pixel[1]}: outside the "
                        f"{cam.width}x{cam.height} image")
+    settings = _settings(args)
+    _check_memory(args, scene, ests, settings, args.mode != "render", "the recording")
     reference = None
     if args.reference is not None:
         from .common import load_reference
@@ -203,7 +230,7 @@ def run_record(args) -> int:
     FigureMaker = _offscreen()
     from .progressive import Progressive
 
-    prog = Progressive(scene, specs, RenderSettings(photons=args.photons), seed=args.seed,
+    prog = Progressive(scene, specs, settings, seed=args.seed,
                        workers=0, breakdown=args.mode != "render",
                        max_seconds=args.time)
     fm = FigureMaker(args.size)
@@ -256,16 +283,19 @@ def run_breakdown(args) -> int:
     import numpy as np
 
     from psurf_core import images as im
-    from psurf_core.render import RenderSettings
 
     out = args.out
     if os.path.exists(out) and not os.path.isdir(out):
         raise CliError(f"--out {out}: exists and is not a directory")
     scene, ests = _scene_and_estimators(args, [args.estimator], True)
+    settings = _settings(args)
+    _check_memory(args, scene, ests, settings, True, "the breakdown")
+    probe_writable("--out", out, out if os.path.isdir(out) else
+                   os.path.dirname(os.path.abspath(out)))
     FigureMaker = _offscreen()
     from .progressive import Progressive
 
-    prog = Progressive(scene, [args.estimator], RenderSettings(photons=args.photons),
+    prog = Progressive(scene, [args.estimator], settings,
                        seed=args.seed, workers=0, breakdown=True)
     prog.run(passes=args.passes)
     b = prog.runs[0].breakdown

@@ -20,6 +20,13 @@ SECONDS, at the end, and when the render is interrupted (Ctrl-C: the completed p
 saved, then one line and exit code 130). ``--resume DIR`` continues at the checkpoint's pass
 count and gives bit-for-bit the mean and variance of an uninterrupted run; it refuses a
 checkpoint made with another scene file, estimator, seed or setting.
+
+Before anything is allocated or written, :func:`~ui.cli.limits.check_render_sizes` checks
+the run's memory (:mod:`psurf_core.budget`) and every output folder's disk. Failures during
+the run are one line and exit code 1, nothing half-written: a checkpoint that cannot be
+written (the previous one stays), an output that cannot be written (none is), memory or the
+workers lost (the completed passes are saved). The checkpoint directory is locked for the
+run, and a killed writer's temporary files there are removed.
 """
 
 from __future__ import annotations
@@ -33,18 +40,21 @@ import numpy as np
 
 from .checkpoint import (
     Checkpointer,
+    CheckpointWriteError,
     checkpoint_dir_ok,
     load_resume,
+    lock_checkpoint_dir,
     report_interrupt,
     same_dir,
     save_on_failure,
     session_budget,
+    write_checkpoint,
 )
 from .common import (
     PROG,
     CliError,
+    OutputWriteError,
     check_output,
-    load_scene,
     nonempty_path,
     nonneg_float,
     nonneg_int,
@@ -65,7 +75,8 @@ from .common import (
     with_scatter,
     write_all,
 )
-from .parallel import add_dask_flags, maybe_distributed
+from .limits import check_render_sizes, load_scene_within
+from .parallel import WorkersLost, add_dask_flags, maybe_distributed
 
 #: Defaults of ``render`` (a 64x48 scene shows a recognisable image in a few seconds).
 DEFAULT_PHOTONS = 4000
@@ -106,7 +117,11 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
             then exits with code 130). Re-run the same command with --resume DIR to continue:
             the result is bit-identical to an uninterrupted render with the same seed.
             On resume, --passes P is the total pass count and --time SECONDS the time for
-            more passes; without either, the checkpoint's own budget is finished."""),
+            more passes; without either, the checkpoint's own budget is finished.
+            A kill at any moment leaves the last checkpoint complete; a checkpoint or output
+            that cannot be written (disk full, read-only, gone) ends the run with one line
+            and exit code 1, the previous checkpoint kept. Sizes are checked against
+            --memory-budget (or the memory available) and the disk before rendering."""),
         epilog=f"estimators:\n{estimators}",
     )
     r.add_argument("scene", metavar="SCENE.toml", help="scene file (see SCENES.md)")
@@ -136,8 +151,11 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
     r.add_argument("--radius-shrink", type=shrink, default=1.0, metavar="ALPHA",
                    help="progressive radius reduction alpha in (0, 1] (default 1: fixed)")
     r.add_argument("--memory-budget", type=positive_int, default=None, metavar="MIB",
-                   help="memory bound of the chunked ray x primitive work in MiB "
-                        "(default: psurf_core.constants.DEFAULT_MEMORY_BUDGET_MIB)")
+                   help="memory limit of the run in MiB: image, camera rays, photon "
+                        "batch, meshes, worker processes and the chunked ray x primitive "
+                        "work (sized from it) are checked against it before anything is "
+                        "allocated (default: the memory available, and chunks of "
+                        "psurf_core.constants.DEFAULT_MEMORY_BUDGET_MIB)")
     r.add_argument("--out", required=True, metavar="OUT.npz", help="output .npz")
     r.add_argument("--png", default=None, metavar="OUT.png", help="also write a tone-mapped PNG")
     r.add_argument("--exr", default=None, metavar="OUT.exr",
@@ -194,6 +212,10 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
         from psurf_core.checkpoint import file_sha256
 
         data["scene_sha256"] = np.str_(file_sha256(scene.path))
+    # Pass moments for the reliability check of compare --reference (psurf_core.reliability).
+    from psurf_core.reliability import npz_fields
+
+    data.update(npz_fields(getattr(result, "accumulator", None)))
     data.update(extra or {})
     return data
 
@@ -202,10 +224,10 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
 
 
 def cmd_render(args) -> int:
-    """Run ``render``; returns 0, 1 (an internal error) or 130 (Ctrl-C), or raises CliError."""
+    """Run ``render``; returns 0, 1 (the run failed: a disk, the memory, the workers, or an
+    internal error; one line), or 130 (Ctrl-C); raises CliError for a bad input."""
     from psurf_core import RenderSettings
     from psurf_core.checkpoint import render_identity
-    from psurf_core.render import RenderResult, render
 
     check_output("--out", args.out)
     if args.png is not None:
@@ -227,7 +249,8 @@ def cmd_render(args) -> int:
             raise CliError(f"--resume {args.resume}: no such directory")
         checkpoint_dir_ok("--resume", args.resume, must_be_empty=False)
 
-    scene = with_resolution(load_scene(args.scene), args.resolution)
+    scene = with_resolution(load_scene_within(args.scene, args.memory_budget),  # meshes first
+                            args.resolution)
     scene = with_scatter(scene, args.min_scatter, args.max_scatter)
     est = parse_estimator_flag(args.estimator, scene)
 
@@ -242,6 +265,7 @@ def cmd_render(args) -> int:
     identity = render_identity(args.scene, scene, est, settings, args.seed) if ck_dir else None
     ck = load_resume(args, identity) if args.resume is not None else None
     passes, time_budget = session_budget(args, ck, DEFAULT_PASSES)
+    need = check_render_sizes(args, scene, est, settings, ck_dir, ck)
 
     # Every input is valid (notes come only now, so that an error is the only line).
     note_scatter_range(est, scene)
@@ -251,11 +275,33 @@ def cmd_render(args) -> int:
         note(f"--radius/--radius-shrink ignored: estimator '{args.estimator}' has no kernel")
 
     # From here on files may be written.
+    lock = None
+    if ck_dir is not None:
+        os.makedirs(ck_dir, exist_ok=True)
+        lock = lock_checkpoint_dir("--checkpoint" if args.checkpoint else "--resume", ck_dir)
+    try:
+        return _session(args, scene, est, settings, radius, ck, ck_dir, identity, passes,
+                        time_budget, need)
+    finally:
+        if lock is not None:
+            os.close(lock)  # the outputs are in place (or nothing is written)
+
+
+def _session(args, scene, est, settings, radius, ck, ck_dir, identity, passes, time_budget,
+             need) -> int:
+    """Render (resuming ``ck``), checkpoint into ``ck_dir``, write the outputs; the exit code.
+
+    Every failure is one line: Ctrl-C (130, the passes saved), a checkpoint that cannot be
+    written (1, the previous one kept), memory or workers lost (1, the passes saved), an
+    output that cannot be written (1, none of them written).
+    """
+    from psurf_core.budget_check import TRIM_SECONDS, release_free_memory
+    from psurf_core.render import RenderResult, render
+
     acc = ck.accumulator if ck is not None else None
     seconds_before = ck.seconds if ck is not None else 0.0
     ckpt = None
     if ck_dir is not None:
-        os.makedirs(ck_dir, exist_ok=True)
         every = DEFAULT_CHECKPOINT_EVERY if args.checkpoint_every is None else args.checkpoint_every
         budget = ({"passes": passes} if passes is not None else
                   {"time": seconds_before + time_budget})
@@ -267,11 +313,16 @@ def cmd_render(args) -> int:
     start_n = acc.n if acc is not None else 0
     bar, close = progress(args.estimator, passes, time_budget, start_n)
 
+    trimmed = [0.0]
+
     def on_pass(i, a, elapsed):
         if ckpt is not None:
-            ckpt.on_pass(i, a, elapsed)
+            write_checkpoint(ckpt, lambda: ckpt.on_pass(i, a, elapsed))
         if bar is not None:
             bar(i, a, elapsed)
+        if elapsed - trimmed[0] >= TRIM_SECONDS:  # long runs stay flat (glibc keeps pages)
+            trimmed[0] = elapsed
+            release_free_memory()
 
     try:
         if acc is not None and passes is not None and acc.n >= passes:
@@ -285,6 +336,22 @@ def cmd_render(args) -> int:
     except KeyboardInterrupt:
         close()
         return report_interrupt(ckpt, args)
+    except CheckpointWriteError as e:  # disk full, read-only, the directory vanished
+        close()
+        print(f"{PROG}: error: {e.line(args.out)}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        close()
+        saved = save_on_failure(ckpt)
+        print(f"{PROG}: error: out of memory while rendering (the run was estimated at "
+              f"{_fmt(need.total)}; lower the resolution, --spp or --photons, or give a "
+              f"--memory-budget below the memory free){saved}", file=sys.stderr)
+        return 1
+    except WorkersLost as e:  # every worker gone, or a pass lost with its worker
+        close()
+        saved = save_on_failure(ckpt)
+        print(f"{PROG}: error: {e}{saved}", file=sys.stderr)
+        return 1
     except FloatingPointError as e:  # Welford.add refused a non-finite pixel: a bug
         close()
         saved = save_on_failure(ckpt)
@@ -304,16 +371,38 @@ def cmd_render(args) -> int:
         from psurf_core.images import write_exr
 
         jobs.append((args.exr, lambda tmp: write_exr(tmp, result.mean)))
-    with sigint_deferred():
-        if ckpt is not None:
-            ckpt.write()
-        write_all(jobs)
-    written = ", ".join(p for p, _ in jobs)
+    try:
+        with sigint_deferred():
+            if ckpt is not None:
+                write_checkpoint(ckpt)
+            write_all(jobs)
+    except CheckpointWriteError as e:
+        print(f"{PROG}: error: {e.line(args.out)}", file=sys.stderr)
+        return 1
+    except OutputWriteError as e:
+        kept = (f"; {ckpt.directory} holds all {plural(ckpt.on_disk, 'pass')}: --resume "
+                f"{ckpt.directory} (without --time) writes them without rendering again"
+                if ckpt is not None and ckpt.on_disk else "")
+        print(f"{PROG}: error: {e}; nothing of {written_list(jobs)} written{kept}",
+              file=sys.stderr)
+        return 1
+    written = written_list(jobs)
     budget_text = "" if est.reference else f" x {result.photons_per_pass} photons"
     resumed = f" (continued from {plural(start_n, 'pass')})" if ck is not None else ""
     print(f"{args.estimator}: {plural(result.passes, 'pass')}{budget_text}, spp {result.spp}, "
           f"{result.seconds:.2f} s{resumed} -> {written}")
     return 0
+
+
+def written_list(jobs) -> str:
+    """``"a.npz, a.png"``: the outputs of ``jobs``."""
+    return ", ".join(p for p, _ in jobs)
+
+
+def _fmt(nbytes: float) -> str:
+    from psurf_core.budget import format_bytes
+
+    return format_bytes(nbytes)
 
 
 def _empty_acc(scene):

@@ -18,6 +18,7 @@ import os
 from ui.views.stepper import DEFAULT_PASSES, DEFAULT_PHOTONS, STAGES
 
 from .common import (
+    CliError,
     explain_estimator_error,
     fail,
     nonneg_int,
@@ -27,6 +28,7 @@ from .common import (
     window_size,
     with_resolution,
 )
+from .limits import check_memory, load_scene_within, probe_writable
 
 
 def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
@@ -78,11 +80,26 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def _check_memory(args, scene, specs) -> None:
+    """The window's progressive panels, the stages' record of one whole pass (every photon)
+    and the picture, against the memory available, before anything renders."""
+    from dataclasses import replace
+
+    from psurf_core.budget import picture_bytes, progressive_need
+    from psurf_core.estimators import parse_estimator
+    from psurf_core.render import RenderSettings
+
+    ests = [parse_estimator(s, scene) for s in specs]
+    need = progressive_need(scene, ests, RenderSettings(photons=args.photons), workers=0,
+                            breakdown=args.mode != "render", inspect=True)
+    check_memory(replace(need, extra=need.extra + (picture_bytes(*args.size),)), None,
+                 what="the screenshot")
+
+
 def run_screenshot(args) -> int:
     """Run ``screenshot``; returns 0, or 2 after one ``psurf: error:`` line."""
     from psurf_core.estimators import parse_estimator
     from psurf_core.scene import SceneError
-    from psurf_core.scene_io import load_scene
     from psurf_core.techniques import UnknownTechnique
 
     out = args.out
@@ -101,9 +118,10 @@ def run_screenshot(args) -> int:
                          "estimator specs")
     flag = "--estimators" if args.estimators is not None else "--estimator"
     try:
-        scene = with_resolution(load_scene(args.scene), args.resolution)
+        # meshes checked before they load
+        scene = with_resolution(load_scene_within(args.scene, None), args.resolution)
         ests = [parse_estimator(spec, scene) for spec in specs]
-    except SceneError as e:
+    except (SceneError, CliError) as e:
         return fail(str(e))
     except UnknownTechnique as e:
         return fail(f"{flag}: {explain_estimator_error(e)}")
@@ -121,6 +139,14 @@ def run_screenshot(args) -> int:
     if args.pass_index >= args.passes:
         return fail(f"--pass {args.pass_index}: the image panels hold passes "
                      f"0..{args.passes - 1} (--passes {args.passes})")
+    try:
+        _check_memory(args, scene, specs)
+    except CliError as e:
+        return fail(str(e))
+    try:
+        probe_writable("--out", out, d)
+    except CliError as e:
+        return fail(str(e))
     try:
         from ui.views._vtk import pv
 

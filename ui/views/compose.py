@@ -215,6 +215,17 @@ def compose(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None:
     apply_layout(plotter, state, state_layout(plotter, state, text))
     compose_title(plotter, state)
     plotter.subplot(*CELL_3D)
+    compose_3d(plotter, state, keep_camera=keep_camera)
+    compose_images(plotter, state)
+    compose_panel(plotter, state, text)
+
+
+def compose_3d(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None:
+    """(Re)draw the 3D view of ``state`` into the plotter's current renderer: the window's
+    3D cell, or a plotter of its own (the web page's 3D view, :mod:`ui.web`).
+
+    ``keep_camera`` as in :func:`compose`.
+    """
     cam_pos = plotter.camera_position if keep_camera else None
     key, home = _home_camera(state)
     if cam_pos is None or key != state.framed:
@@ -238,8 +249,6 @@ def compose(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None:
     state.scene_key = key3d
     plotter.camera_position = cam_pos
     plotter.renderer.ResetCameraClippingRange()
-    compose_images(plotter, state)
-    compose_panel(plotter, state, text)
 
 
 def compose_panel(plotter: pv.Plotter, state, text: str | None = None) -> bool:

@@ -282,14 +282,14 @@ def _draw_family(tech, prims, idx: np.ndarray, scene, radius: float):
     if fam == "single":
         one = d.get("one_sided", np.zeros(m, dtype=bool)).astype(bool)
         if name == "ss-sphere":
-            return grid_surface(_sphere_grid(d["x"], d["T"], d["axis"],
+            return grid_surface(_sphere_grid(d["x1"], d["T1"], d["axis"],
                                              np.where(one, 0.5 * np.pi, np.pi)))
         if name.startswith("ss-cone"):
-            return grid_surface(_cone_grid(d["x"], d["axis"], d["c"],
-                                           _lengths(d["T"] if short else None, m, far)))
+            return grid_surface(_cone_grid(d["x1"], d["w2"], d["c1"],
+                                           _lengths(d["T1"] if short else None, m, far)))
         if name.startswith("ss-disk"):
-            return grid_surface(_half_disk_grid(d["x"], d["axis"], d["er"],
-                                                _lengths(d["T"] if short else None, m, far),
+            return grid_surface(_half_disk_grid(d["x1"], d["axis"], d["er"],
+                                                _lengths(d["T1"] if short else None, m, far),
                                                 np.where(one, 0.5 * np.pi, np.pi)))
         if name.startswith("ss-plane"):
             tri = d["tri"].astype(bool)
@@ -300,7 +300,7 @@ def _draw_family(tech, prims, idx: np.ndarray, scene, radius: float):
                                                           1.0 - a[None, :, None, None], 1.0))
                      * d["B"][:, None, None])
                 return grid_surface(P)
-            tb = _lengths(d["T"] if short else None, m, far)
+            tb = _lengths(d["T1"] if short else None, m, far)
             return grid_surface(_parallelograms(d["org"], d["A"], d["B"], d["amax"], tb))
         return None
     return None

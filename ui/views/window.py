@@ -49,6 +49,7 @@ from .compose import (  # noqa: F401 - the window's composition, re-exported for
     HELP,
     apply_layout,
     compose,
+    compose_3d,
     compose_images,
     compose_panel,
     compose_title,
