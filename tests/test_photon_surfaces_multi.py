@@ -40,7 +40,9 @@ from psurf_core.techniques import (
     spheres,
 )
 from psurf_core.techniques.base import PassContext
-from psurf_core.techniques.revolutions import Torus, hyperboloid_normal, torus_normal
+from psurf_core.techniques.hyperboloids import scaled_normal as hyperboloid_normal
+from psurf_core.techniques.tori import Torus
+from psurf_core.techniques.tori import scaled_normal as torus_normal
 from psurf_core.trace import PhotonPaths, trace
 
 # The module (not its render() function) is patched in the escape test.
