@@ -306,6 +306,39 @@ def test_reconstruct_labels_every_vertex_and_frames_the_path():
     del inspect_pixel, load_scene, RenderSettings
 
 
+def test_labels_of_close_points_never_cover_each_other():
+    """Reconstruct's vertex labels merged where two vertices are close on screen ("x3
+    (light)" over "x2" beside the point light): each label is now placed, in pixels, clear
+    of the labels before it and of every labelled point."""
+    from ui.views.label_layout import PAD, POINT_HALF, place, project, world_offsets
+
+    rng = np.random.default_rng(0)
+    screen = rng.normal(scale=12.0, size=(9, 2))  # nine points in a 24 px cluster
+    sizes = np.column_stack([rng.uniform(20, 90, 9), np.full(9, 18.0)])
+    anchors, leads = place(screen, sizes, 14.0)
+    boxes = np.column_stack([screen + anchors - PAD, screen + anchors + sizes + PAD])
+    for i in range(9):
+        for j in range(i):
+            a, b = boxes[i], boxes[j]
+            assert min(a[2], b[2]) <= max(a[0], b[0]) or min(a[3], b[3]) <= max(a[1], b[1])
+        for p in screen:  # no box covers a point (the square of POINT_HALF around it)
+            a = boxes[i]
+            assert (min(a[2], p[0] + POINT_HALF) <= max(a[0], p[0] - POINT_HALF)
+                    or min(a[3], p[1] + POINT_HALF) <= max(a[1], p[1] - POINT_HALF))
+    # leaders end on their own box
+    ends = screen + leads
+    assert np.all((ends >= screen + anchors - 1e-9) & (ends <= screen + anchors + sizes + 1e-9))
+    # the world offsets land the anchors on those pixels (perspective, any depth)
+    cam = ((0.0, -10.0, 2.0), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    view = (800, 600, 30.0)
+    pts = rng.uniform(-1, 1, size=(9, 3))
+    off, _ = world_offsets(pts, sizes, cam, view, 14.0)
+    s0, _ = project(pts, cam, view)
+    s1, _ = project(pts + off, cam, view)
+    want, _ = place(s0, sizes, 14.0)
+    assert np.allclose(s1 - s0, want, atol=1e-6)
+
+
 # --------------------------------------------------------------------------- defect 8
 @pytest.mark.parametrize("argv, message", [
     (["demo", POINT, "--estimator", "paper-mutli"], "did you mean 'paper-multi'?"),

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import scene_view
+from . import label_layout, scene_view
 from ._vtk import pv
 from .palette import OKABE_ITO, technique_colour
 from .primitives_view import add_legend, add_primitives, primitive_mesh
@@ -65,23 +65,40 @@ def add_query_ray(plotter: pv.Plotter, inspection, *, width: float = 8.0) -> Non
 def add_labels(plotter: pv.Plotter, scene, points: np.ndarray, labels: list, *, dist: float,
                name: str, size: float = FONT, colour: str = TEXT_COLOUR,
                camera=None) -> object:
-    """Labels that are all drawn (none hidden where they would touch), each moved ``dist``
-    away from its point in the direction that keeps the labels apart on screen
-    (:func:`label_offsets`) and tied to it by a thin leader line."""
+    """Labels that are all drawn and never cover each other or a labelled point: each is
+    placed on screen for the view's camera (``camera``, default the overview) at the first
+    free spot around its point, about ``dist`` (world units) away
+    (:func:`ui.views.label_layout.place`), and tied to it by a thin leader line."""
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
     if not len(pts):
         return None
-    anchors = pts + label_offsets(scene, pts, dist, camera)
+    off, lead = _label_offsets(plotter, scene, pts, list(labels), dist, pt(size), camera)
+    anchors = pts + off
     n = len(pts)
     lines = np.column_stack([np.full(n, 2), np.arange(n), np.arange(n) + n]).ravel()
-    plotter.add_mesh(pv.PolyData(np.vstack([pts, anchors]), lines=lines), color=LEADER_COLOUR,
-                     line_width=px(1.5), name=f"{name}-leaders")
+    plotter.add_mesh(pv.PolyData(np.vstack([pts, pts + lead]), lines=lines),
+                     color=LEADER_COLOUR, line_width=px(1.5), name=f"{name}-leaders")
     actor = plotter.add_point_labels(anchors, list(labels), font_size=pt(size),
                                      text_color=colour, shape_color="white",
                                      shape_opacity=0.85, show_points=False,
                                      always_visible=True, name=name)
-    actor.GetMapper().PlaceAllLabelsOn()  # every label drawn, even where two touch
+    actor.GetMapper().PlaceAllLabelsOn()  # every label drawn (they are apart already)
     return actor
+
+
+def _label_offsets(plotter, scene, pts, labels, dist: float, font_px: int, camera):
+    """World offsets ``(anchors, leader ends)`` of ``labels`` at ``pts`` for the plotter's
+    current renderer (its size in pixels and view angle) seen from ``camera``."""
+    cam = camera or scene_view.overview_camera(scene)
+    x0, y0, x1, y1 = plotter.renderer.GetViewport()
+    w, h = plotter.window_size
+    view = ((x1 - x0) * w, (y1 - y0) * h, plotter.renderer.GetActiveCamera().GetViewAngle())
+    # pyvista draws point labels bold
+    sizes = [scene_view.text_extent(str(t), font_px, bold=True) for t in labels]
+    _, depth = label_layout.project(pts, cam, view)
+    dist_px = float(np.clip(dist * np.median(label_layout.pixels_per_unit(depth, view)),
+                            10.0, 40.0))
+    return label_layout.world_offsets(pts, sizes, cam, view, dist_px)
 
 
 def add_hit_points(plotter: pv.Plotter, inspection, rows, *, labels: bool = True,
@@ -196,10 +213,12 @@ def add_normals(plotter: pv.Plotter, inspection, rows, *, camera=None) -> None:
                                                  shaft_radius=0.05)),
                          color=NORMAL_COLOUR, name="normal-arrows")
         tips = t.point[rows][ok] + unit * length[:, None]
-        tips = tips + label_offsets(inspection.scene, tips, 1.5 * sc, camera)
         rank = {int(r): i for i, r in enumerate(hit_order(inspection))}
+        names = [f"n #{rank[int(r)]}" for r in rows[ok]]
+        tips = tips + _label_offsets(plotter, inspection.scene, tips, names, 1.5 * sc,
+                                     pt(FONT_SMALL), camera)[0]
         actor = plotter.add_point_labels(
-            tips, [f"n #{rank[int(r)]}" for r in rows[ok]],
+            tips, names,
             font_size=pt(FONT_SMALL), text_color=NORMAL_COLOUR, shape_color="white",
             shape_opacity=0.85, show_points=False, always_visible=True, name="normal-labels")
         actor.GetMapper().PlaceAllLabelsOn()
@@ -292,33 +311,3 @@ def add_member_surfaces(plotter: pv.Plotter, inspection, recon: dict, members: d
     if entries:
         add_legend(plotter, entries, loc="lower right")
     return entries
-
-
-def label_offsets(scene, pts: np.ndarray, dist: float, camera=None) -> np.ndarray:
-    """(N, 3) world offsets for labels of ``pts`` that keep them apart on screen.
-
-    Greedy, in the plane of the view (``camera`` ``(position, focal point, view up)``,
-    default the overview's): each label takes, of eight directions, the
-    one whose label position is farthest from every vertex and every label placed so far.
-    """
-    pos, focal, up = (np.asarray(v, float) for v in
-                      (camera or scene_view.overview_camera(scene)))
-    back = (pos - focal) / np.linalg.norm(pos - focal)
-    up = up - (up @ back) * back
-    up = up / np.linalg.norm(up)
-    right = np.cross(up, back)
-    ang = np.radians([90, 45, 135, 0, 180, 270, 315, 225])
-    cands = np.cos(ang)[:, None] * right[None] + np.sin(ang)[:, None] * up[None]
-
-    def screen(x):
-        return np.stack([x @ right, x @ up], axis=-1)
-
-    taken = list(screen(pts))
-    out = np.zeros_like(pts)
-    for i, p in enumerate(pts):
-        spots = screen(p[None] + dist * cands)
-        gap = np.min(np.linalg.norm(spots[:, None] - np.array(taken)[None], axis=-1), axis=1)
-        best = int(np.argmax(np.round(gap / dist, 1)))  # ties keep the earlier (upper) spot
-        out[i] = dist * cands[best]
-        taken.append(spots[best])
-    return out
