@@ -147,7 +147,7 @@ def _compose_3d(plotter: pv.Plotter, state, camera=None,
     if with_scene:
         before = set(plotter.renderer.actors)
         scene_view.add_scene(plotter, scene, pixel_xy=state.pixel_xy,
-                             labels=(stage != "reconstruct"))
+                             labels=_scene_labels(stage))
         state.scene_actors = set(plotter.renderer.actors) - before
     if ins is None:
         add_text(plotter, "computing...", 0.5, 0.97, FONT, name="computing", align="center",
@@ -191,7 +191,13 @@ def _compose_3d(plotter: pv.Plotter, state, camera=None,
                                        list_empty=False)
 
 
-def _home_camera(state):
+def _scene_labels(stage: str) -> bool:
+    """Whether the scene's own labels (light, camera) are drawn: not where the stage labels
+    points of its own (Evaluate's hits, Reconstruct's vertices), which they would cover."""
+    return stage not in ("evaluate", "reconstruct")
+
+
+def _home_camera(state, view_aspect: float | None = None):
     """``(key, camera)``: where the 3D view looks by default at this stage (a pinned camera
     (lecture); Reconstruct: framing the selected hit's path; otherwise the overview)."""
     if state.camera_pin is not None:
@@ -201,7 +207,8 @@ def _home_camera(state):
         if recon is not None and recon.get("polyline") is not None:
             key = ("recon", state.pixel_xy, state.pass_index, k, state.estimator.spec)
             return key, hits_view.reconstruct_camera(recon, state.scene)
-    return ("overview",), scene_view.overview_camera(state.scene)
+    aspect = round(view_aspect, 2) if view_aspect else None
+    return ("overview", aspect), scene_view.overview_camera(state.scene, aspect=aspect)
 
 
 def compose(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None:
@@ -227,7 +234,9 @@ def compose_3d(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None
     ``keep_camera`` as in :func:`compose`.
     """
     cam_pos = plotter.camera_position if keep_camera else None
-    key, home = _home_camera(state)
+    x0, y0, x1, y1 = plotter.renderer.GetViewport()
+    w, h = plotter.window_size
+    key, home = _home_camera(state, (x1 - x0) * w / max((y1 - y0) * h, 1.0))
     if cam_pos is None or key != state.framed:
         cam_pos = home
     state.framed = key
@@ -235,7 +244,7 @@ def compose_3d(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None
     ren = plotter.renderer
     _clear_bars(plotter, ren)
     # The scene (box, lights, occluders, camera) stays when only the stage changed.
-    key3d = (id(state.scene), state.pixel_xy, state.stage != "reconstruct")
+    key3d = (id(state.scene), state.pixel_xy, _scene_labels(state.stage))
     reuse = (state.scene_key == key3d and bool(state.scene_actors)
              and all(n in ren.actors for n in state.scene_actors))
     if reuse:

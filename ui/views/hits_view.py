@@ -134,7 +134,8 @@ def add_hit_points(plotter: pv.Plotter, inspection, rows, *, labels: bool = True
 def add_ray_labels(plotter: pv.Plotter, inspection, rows, labels: list, *,
                    name: str = "hit-labels", camera=None) -> object:
     """Labels of hits on the query ray that never cover each other: lined up beside the ray
-    (on screen, in the order of the hits along it, one label height apart) and tied to their
+    on screen, in the order of the hits along it, one box apart
+    (:func:`ui.views.label_layout.line_up`, for the view's camera and size), and tied to their
     hits by leader lines. Hits cluster along the ray, so labels next to their hits would
     pile up; every label is drawn (none is hidden where two would touch)."""
     t = inspection.table
@@ -143,36 +144,34 @@ def add_ray_labels(plotter: pv.Plotter, inspection, rows, labels: list, *,
     rows = np.asarray(rows, dtype=np.int64)
     if not rows.size:
         return None
-    pos, focal, up = (np.asarray(v, float) for v in
-                      (camera or scene_view.overview_camera(scene)))
-    back = (pos - focal) / np.linalg.norm(pos - focal)
-    up = up - (up @ back) * back
-    up = up / np.linalg.norm(up)
-    right = np.cross(up, back)
-    d = t.psi[rows[0]]
-    d2 = np.array([d @ right, d @ up])
-    n2 = np.array([-d2[1], d2[0]]) / max(np.linalg.norm(d2), 1e-9)
-    if n2[1] < 0:  # beside the ray on its upper side
-        n2 = -n2
-    perp = n2[0] * right + n2[1] * up
-    along = d2[0] * right + d2[1] * up
-    along /= max(np.linalg.norm(along), 1e-9)
+    cam = camera or scene_view.overview_camera(scene)
     order = np.argsort(t.s[rows], kind="stable")
     pts = t.point[rows][order]
-    # One label height apart on screen, at the overview's zoom in this viewport.
-    vx0, vy0, vx1, vy1 = plotter.renderer.GetViewport()
-    vh = max((vy1 - vy0) * plotter.window_size[1], 1.0)
-    world_per_px = 2.0 * np.linalg.norm(pos - focal) * np.tan(np.radians(15.0)) / vh
-    label_px = 1.45 * pt(FONT)
-    step = max(label_px * world_per_px, 1.5 * sc)
-    centre = pts.mean(axis=0) + 1.6 * label_px * world_per_px * perp
-    k = np.arange(len(pts)) - 0.5 * (len(pts) - 1)
-    anchors = centre[None] + k[:, None] * step * along[None]
+    names = [labels[i] for i in order]
+    x0, y0, x1, y1 = plotter.renderer.GetViewport()
+    w, h = plotter.window_size
+    view = ((x1 - x0) * w, (y1 - y0) * h, plotter.renderer.GetActiveCamera().GetViewAngle())
+    screen, _ = label_layout.project(pts, cam, view)
+    ends, _ = label_layout.project(pts[:1] + t.psi[rows[order[0]]][None] * sc, cam, view)
+    sizes = [scene_view.text_extent(str(x), pt(FONT), bold=True) for x in names]
+    anchors_px, leaders_px = label_layout.line_up(screen, ends[0] - screen[0], sizes,
+                                                  0.6 * pt(FONT))
+    # back to the world, in the plane parallel to the image through the hits' middle
+    _, _, right, up = label_layout.view_basis(cam)
+    mid = pts.mean(axis=0)
+    (mid_px,), (mid_depth,) = label_layout.project(mid[None], cam, view)
+    per_px = 1.0 / float(label_layout.pixels_per_unit(mid_depth, view))
+
+    def world(p):
+        d = (p - mid_px[None]) * per_px
+        return mid[None] + d[:, :1] * right[None] + d[:, 1:] * up[None]
+
+    anchors, leader_ends = world(anchors_px), world(leaders_px)
     n = len(pts)
     cells = np.column_stack([np.full(n, 2), np.arange(n), np.arange(n) + n]).ravel()
-    plotter.add_mesh(pv.PolyData(np.vstack([pts, anchors]), lines=cells), color=LEADER_COLOUR,
-                     line_width=px(1.5), name=f"{name}-leaders")
-    actor = plotter.add_point_labels(anchors, [labels[i] for i in order], font_size=pt(FONT),
+    plotter.add_mesh(pv.PolyData(np.vstack([pts, leader_ends]), lines=cells),
+                     color=LEADER_COLOUR, line_width=px(1.5), name=f"{name}-leaders")
+    actor = plotter.add_point_labels(anchors, names, font_size=pt(FONT),
                                      text_color=TEXT_COLOUR, shape_color="white",
                                      shape_opacity=0.85, show_points=False,
                                      always_visible=True, name=name)

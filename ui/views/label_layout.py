@@ -126,3 +126,34 @@ def world_offsets(points, sizes, camera, view, dist_px: float):
 
     anchors, leaders = place(screen, sizes, dist_px)
     return world(anchors), world(leaders)
+
+
+def line_up(screen, direction, sizes, gap_px: float):
+    """``(anchors, leaders)`` (N, 2) pixel positions for labels of points strung along a line
+    on screen (hits on the query ray, ``screen`` in their order along it): one row of boxes
+    parallel to the line on its upper side, in the same order, each box one box apart (its
+    width or its height, whichever the line's slope makes the one that keeps them apart),
+    ``gap_px`` off the line. Leaders end at the point of each box nearest its point.
+
+    ``direction`` : the line's direction on screen (2,); ``sizes`` (N, 2) the texts' sizes.
+    """
+    screen = np.asarray(screen, dtype=float).reshape(-1, 2)
+    sizes = np.asarray(sizes, dtype=float).reshape(-1, 2)
+    u = np.asarray(direction, dtype=float)
+    u = u / max(np.linalg.norm(u), 1e-9)
+    n = np.array([-u[1], u[0]])
+    if n[1] < 0 or (n[1] == 0 and n[0] < 0):  # the upper side
+        n = -n
+    w, h = sizes.max(axis=0) + 2.0 * PAD
+    step = min(w / abs(u[0]) if abs(u[0]) > 1e-9 else np.inf,
+               h / abs(u[1]) if abs(u[1]) > 1e-9 else np.inf)
+    # centres of the boxes: along the line about the points' middle, off it by half a box
+    # (measured across the line) and the gap
+    off = 0.5 * (w * abs(n[0]) + h * abs(n[1])) + gap_px
+    k = np.arange(len(screen)) - 0.5 * (len(screen) - 1)
+    mid = screen.mean(axis=0) + off * n
+    centres = mid[None] + k[:, None] * step * u[None]
+    anchors = centres - 0.5 * sizes
+    leaders = np.column_stack([np.clip(screen[:, 0], anchors[:, 0], anchors[:, 0] + sizes[:, 0]),
+                               np.clip(screen[:, 1], anchors[:, 1], anchors[:, 1] + sizes[:, 1])])
+    return anchors, leaders

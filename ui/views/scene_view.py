@@ -223,28 +223,66 @@ def scale_of(scene: Scene) -> float:
 OVERVIEW_DIRECTION = (0.75, 0.5, -1.0)
 
 
-def overview_camera(scene: Scene, zoom: float = 1.3):
+def overview_camera(scene: Scene, zoom: float = 1.3, aspect: float | None = None):
     """A fixed oblique viewpoint, from behind and beside the scene camera, that frames the
-    camera, its frustum and the medium box (leaving the top of the view for the title).
+    camera, its frustum and the medium box.
 
-    Returns ``(position, focal_point, view_up)`` for ``plotter.camera_position``.
+    With ``aspect`` (the view's width / height) the camera, the box's corners and the
+    picked pixel's side of the frustum are fitted to that view (the window's 3D view, which
+    has its own title cell); without it, the tutorials' framing (a bounding sphere, room left
+    at the top for a title inside the view). Returns ``(position, focal_point, view_up)`` for
+    ``plotter.camera_position``.
     """
     cam = scene.camera
     med = scene.medium
     a, b, c = OVERVIEW_DIRECTION
     side = cam.right * a + cam.image_up * b + cam.forward * c
     side = side / np.linalg.norm(side)
-    pts = np.vstack([cam.position, med.bounds_min, med.bounds_max])
     centre = 0.5 * (med.bounds_min + med.bounds_max)
+    view_up = cam.image_up - (cam.image_up @ side) * side
+    view_up = view_up / np.linalg.norm(view_up)
+    if aspect is not None:
+        return _fitted_overview(scene, side, view_up, float(aspect))
+    pts = np.vstack([cam.position, med.bounds_min, med.bounds_max])
     focal = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     focal = 0.8 * focal + 0.2 * centre
     radius = 0.5 * np.linalg.norm(cam.position - centre) + 0.5 * med.diagonal
-    view_up = cam.image_up - (cam.image_up @ side) * side
     # A 30 degree view angle: distance to fit the radius, then shift the focal point down
     # so the scene sits below the title and caption.
     dist = radius / np.tan(np.radians(15.0)) / zoom
-    focal = focal + 0.1 * radius * view_up / np.linalg.norm(view_up)
+    focal = focal + 0.1 * radius * view_up
     return [tuple(focal + dist * side), tuple(focal), tuple(view_up)]
+
+
+#: Room around the fitted overview (fraction of the view's half width / height), and the
+#: fraction of its height kept free at the bottom (the colour bar, the legend).
+OVERVIEW_MARGIN, OVERVIEW_BOTTOM = 0.06, 0.14
+
+
+def _fitted_overview(scene: Scene, side, up, aspect: float):
+    """The overview along ``side`` whose 30 degree view just holds the scene camera and the
+    box's eight corners in a view ``aspect`` wide per unit of height, above the bottom band
+    that legends and colour bars use."""
+    med = scene.medium
+    lo, hi = med.bounds_min, med.bounds_max
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    pts = np.vstack([scene.camera.position, corners])
+    right = np.cross(up, side)
+    # centre the points across the view, then back off until every one is inside
+    x, y = pts @ right, pts @ up
+    mid = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    focal = ((mid @ side) * side + 0.5 * (x.min() + x.max()) * right
+             + 0.5 * (y.min() + y.max()) * up)
+    q = pts - focal
+    t = np.tan(np.radians(15.0))
+    # normalized screen heights run from -1 to 1: the band [-1, -1 + 2 b] stays free
+    b, m = OVERVIEW_BOTTOM, OVERVIEW_MARGIN
+    tv = t * (1.0 - b - m)
+    th = t * aspect * (1.0 - m)
+    dist = float(np.max(q @ side + np.maximum(np.abs(q @ right) / th, np.abs(q @ up) / tv)))
+    focal = focal - b * t * dist * up  # the scene sits b higher, above the band
+    return [tuple(focal + dist * side), tuple(focal), tuple(up)]
 
 
 def frustum_lines(scene: Scene, pixel_xy=None):
