@@ -440,10 +440,12 @@ def test_resolution_overrides_the_scene(argv, tmp_path, monkeypatch):
     assert app.main([*argv[:-2], "--resolution", "0,5", argv[-2], argv[-1]]) == 2
 
 
-def test_compare_takes_resolution():
+def test_compare_takes_resolution(tmp_path, monkeypatch):
+    """``compare --resolution`` renders at that size, with the default ``--photons auto``
+    (whose memory check once raised on the word 'auto')."""
     import app
 
-    args = app.build_parser().parse_args(["compare", POINT, "--estimators", "planes,beams",
-                                          "--time", "1", "--resolution", "40,30",
-                                          "--out", "d"])
-    assert args.resolution == (40, 30)
+    monkeypatch.chdir(tmp_path)
+    assert app.main(["compare", POINT, "--estimators", "planes,beams", "--time", "0.3",
+                     "--reference-time", "0.3", "--resolution", "24,18", "--out", "d"]) == 0
+    assert np.load(tmp_path / "d" / "reference.npz")["mean"].shape == (18, 24, 3)
