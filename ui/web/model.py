@@ -177,10 +177,11 @@ class WebSession:
         parse_specs(",".join(old.specs), load_scene(path))  # one line naming the bad one
         st = window.build_state(path, old.base_spec, old.seed, None, old.settings.photons,
                                 render_passes=False, estimators=old.specs, inspect=old.inspected)
-        st.disabled_by = dict(old.disabled_by)
-        st.estimator = window.panel_estimator(st, st.inspected)
-        window.reinspect(st)
-        window.accept_results(st)
+        if old.disabled_by:  # members switched off stay off: inspect that estimator
+            st.disabled_by = dict(old.disabled_by)
+            st.estimator = window.panel_estimator(st, st.inspected)
+            window.reinspect(st)
+            window.accept_results(st)
         st.mode, st.stepper = old.mode, old.stepper
         st.prog, st.panels, st.playing = old.prog, old.panels, old.playing
         self.s, self.label = st, label
