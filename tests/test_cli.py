@@ -226,23 +226,62 @@ def test_help_lists_subcommands_and_estimators(tmp_path):
         assert text in r.stdout
 
 
-def test_demo_writes_images(tmp_path):
-    r = run_cli("demo", SCENE, "--out", "demo", "--seconds", "0.2", "--photons", "300",
-                cwd=tmp_path)
+def test_demo_writes_the_comparison(tmp_path):
+    """Headless ``demo``: the equal-time comparison (renders, variance maps, Var, relMSE), the
+    convergence GIF and the window's five stages; what it measured is printed, never
+    assumed (the showcase's own run is ``make demo``; here a small scene and budget)."""
+    import imageio.v3 as iio
+
+    r = run_cli("render", SCENE, "--estimator", "reference", "--passes", "4", "--out",
+                "ref.npz", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    specs = "planes,mis:plane-t1t2+planes"
+    r = run_cli("demo", SCENE, "--out", "demo", "--time", "0.4", "--photons", "200",
+                "--estimators", specs, "--reference", "ref.npz", cwd=tmp_path, timeout=300)
     assert r.returncode == 0, r.stderr
     out = tmp_path / "demo"
-    names = {f"{k}_{e}.{x}" for e in ("planes", "reference")
-             for k, x in (("render", "png"), ("variance", "png"), ("render", "npz"))}
-    names.add("comparison.png")
-    # ... and the window's five stages, off-screen (what a display would have shown).
+    names = {"comparison.png", "convergence.gif"}
+    for e in ("planes", "mis_plane-t1t2_planes"):
+        names |= {f"render_{e}.png", f"variance_{e}.png", f"render_{e}.npz"}
     names |= {f"app_{s}.png" for s in ("trace", "create", "intersect", "evaluate",
                                         "reconstruct")}
     assert names <= {p.name for p in out.iterdir()}
     for n in names:
         assert str(Path("demo") / n) in r.stdout
-    assert "relMSE" in r.stdout
+    assert "at equal time" in r.stdout and "relMSE" in r.stdout
+    assert "not counted" in r.stdout  # compiling is reported apart
+    assert "its own noise adds" in r.stdout  # the reference's own error, said
+    # and how to show the same comparison to a class in their browsers
+    assert f"python app.py serve {SCENE.name} --estimators {specs} --port 8080" in r.stdout
+    assert len(iio.imread(out / "convergence.gif", index=None)) >= 2
+    fig = images_read(out / "comparison.png")
+    assert fig.shape[:2] == (1000, 1600) and fig.std() > 10
     fig = images_read(out / "variance_planes.png")
     assert fig.ndim == 3 and fig.shape[1] > 64  # a figure with a colour bar, not the raw map
+
+
+def test_showcase_reference_belongs_to_the_showcase_scene():
+    """``make demo``'s relMSE trusts ``scenes/showcase_reference.npz``: it must be the image
+    of the scene file as it is now (same bytes), at its resolution and scatter range, by an
+    unbiased estimator (``make showcase-reference`` renders it again)."""
+    import hashlib
+
+    from psurf_core.scene_io import load_scene
+    from ui.cli.common import load_reference
+
+    scene_file = ROOT / "scenes" / "showcase.toml"
+    ref_file = ROOT / "scenes" / "showcase_reference.npz"
+    from psurf_core.estimators import parse_estimator
+
+    with np.load(ref_file) as z:
+        sha = str(z["scene_sha256"])
+        est = str(z["estimator"])
+    assert sha == hashlib.sha256(scene_file.read_bytes()).hexdigest(), (
+        "scenes/showcase.toml changed: render its reference again (make showcase-reference)")
+    scene = load_scene(str(scene_file))
+    assert not parse_estimator(est, scene).kernel  # an unbiased estimator, no kernel blur
+    ref = load_reference(str(ref_file), scene)
+    assert ref.passes >= 50 and np.isfinite(ref.mean).all() and ref.var is not None
 
 
 # --------------------------------------------------------------------------- images

@@ -1,8 +1,10 @@
 """Screenshots of every stage of the window, compared with committed baselines.
 
-Every stage of ``ui.views.window`` is rendered off-screen for two bundled scenes (``point.toml`` and
-``area_occluder.toml``) at a fixed pixel and seed with tiny budgets (200 photons, 2 passes,
-800 x 450), and compared with ``tests/baselines/<scene>_<stage>.png`` by SSIM
+Every stage of ``ui.views.window`` (and, with two estimators, every image-panel mode) is
+rendered off-screen for two bundled scenes (``point.toml``: one estimator, 1024 x 768;
+``area_occluder.toml``: photon planes beside an MIS set, at 1024 x 768 and 1920 x 1080) at a
+fixed pixel and seed with tiny budgets (200 photons, 2 passes), and compared with
+``tests/baselines/<scene>_<W>x<H>_<stage or mode_NAME>.png`` by SSIM
 (``skimage.metrics.structural_similarity`` over the RGB channels).
 
 Tolerance: SSIM >= 0.95. The numbers behind each picture are deterministic (seeded passes);
@@ -40,9 +42,16 @@ BASELINES = Path(__file__).resolve().parent / "baselines"
 SSIM_MIN = 0.95
 UPDATE = os.environ.get("PSURF_UPDATE_BASELINES") == "1"
 
-SHOT = dict(pixel_xy=(32, 24), estimator="planes", seed=1, size=(800, 450), passes=2,
-            photons=200)
 SCENES = ("point", "area_occluder")
+#: The window's pictures: every stage, and every panel mode, at the small and the large end of
+#: the sizes a lecture uses. ``point``: one estimator; ``area_occluder``: two side by side, the
+#: MIS set inspected (its member chips are the footer's, not in screenshots).
+CASES = {
+    "point": dict(estimators=["planes"], pixel=(32, 24), sizes=[(1024, 768)], modes=False),
+    "area_occluder": dict(estimators=["planes", "mis:plane-t1t2+cone+cylinder"],
+                          pixel=(32, 24), sizes=[(1024, 768), (1920, 1080)], modes=True),
+}
+SEED, PHOTONS, PASSES = 1, 200, 2
 
 
 def _read(path: Path) -> np.ndarray:
@@ -51,28 +60,99 @@ def _read(path: Path) -> np.ndarray:
     return np.asarray(iio.imread(path))[..., :3]
 
 
-@pytest.mark.parametrize("stage", STAGES)
-@pytest.mark.parametrize("scene", SCENES)
-def test_stage_matches_baseline(scene, stage, tmp_path):
-    from ui.views.window import screenshot
+def _check(name: str, got: np.ndarray, tmp_path: Path) -> None:
+    import imageio.v3 as iio
 
-    out = tmp_path / f"{scene}_{stage}.png"
-    img = screenshot(str(ROOT / "scenes" / f"{scene}.toml"), stage, out=str(out), **SHOT)
-    assert img.shape[:2] == (450, 800)
-    assert out.exists()
-    baseline = BASELINES / f"{scene}_{stage}.png"
+    baseline = BASELINES / f"{name}.png"
     if UPDATE:
         BASELINES.mkdir(exist_ok=True)
-        baseline.write_bytes(out.read_bytes())
+        iio.imwrite(baseline, got)
         return
     if not baseline.exists():
         pytest.fail(f"missing baseline {baseline}; create it with PSURF_UPDATE_BASELINES=1")
     ref = _read(baseline)
-    got = _read(out)
-    assert got.shape == ref.shape
+    assert got.shape == ref.shape, (name, got.shape, ref.shape)
     ssim = structural_similarity(ref, got, channel_axis=2, data_range=255)
-    assert ssim >= SSIM_MIN, (f"{scene}/{stage}: SSIM {ssim:.3f} < {SSIM_MIN} against "
-                              f"{baseline} (new picture: {out})")
+    if ssim < SSIM_MIN:
+        iio.imwrite(tmp_path / baseline.name, got)
+    assert ssim >= SSIM_MIN, (f"{name}: SSIM {ssim:.3f} < {SSIM_MIN} against {baseline} "
+                              f"(new picture: {tmp_path / baseline.name})")
+
+
+def _state(case: str):
+    """The window's state of a case with its panels rendered here (deterministic)."""
+    from ui.cli.progressive import Progressive
+    from ui.views.image_panels import PanelView
+    from ui.views.window import build_state
+
+    c = CASES[case]
+    state = build_state(str(ROOT / "scenes" / f"{case}.toml"), seed=SEED, pixel_xy=c["pixel"],
+                        photons=PHOTONS, passes=PASSES, render_passes=False,
+                        estimators=c["estimators"])
+    state.prog = Progressive(state.scene, list(state.specs), state.settings, seed=SEED,
+                             workers=0, breakdown=c["modes"])
+    state.prog.run(passes=PASSES)
+    for r in state.prog.runs:
+        r.seconds = 0.0  # wall seconds differ between runs: compare at equal passes
+    state.panels, state.acc = PanelView(), state.prog.runs[state.inspected].acc
+    return state
+
+
+@pytest.fixture(scope="module")
+def pictures():
+    """Every stage (and mode) of every case at every size, composed into one plotter per size
+    (as the window recomposes: updates and rebuilds)."""
+    from ui.views.panel_modes import MODES
+    from ui.views.window import compose, make_plotter
+
+    out = {}
+    for case, c in CASES.items():
+        state = _state(case)
+        try:
+            for size in c["sizes"]:
+                tag = f"{case}_{size[0]}x{size[1]}"
+                plotter = make_plotter(size, off_screen=True)
+                try:
+                    for stage in STAGES:
+                        state.stepper.go(stage)
+                        compose(plotter, state)
+                        plotter.render()
+                        out[f"{tag}_{stage}"] = plotter.screenshot(None, return_img=True)
+                    if c["modes"]:
+                        state.stepper.go("evaluate")
+                        for mode in MODES:
+                            state.mode = mode
+                            compose(plotter, state)
+                            plotter.render()
+                            out[f"{tag}_mode_{mode}"] = plotter.screenshot(None,
+                                                                           return_img=True)
+                        state.mode = "render"
+                finally:
+                    plotter.close()
+        finally:
+            state.prog.close()
+            state.inspector.close()
+    return out
+
+
+def _names() -> list:
+    from ui.views.panel_modes import MODES
+
+    names = []
+    for case, c in CASES.items():
+        for size in c["sizes"]:
+            tag = f"{case}_{size[0]}x{size[1]}"
+            names += [f"{tag}_{s}" for s in STAGES]
+            names += [f"{tag}_mode_{m}" for m in MODES] if c["modes"] else []
+    return names
+
+
+@pytest.mark.parametrize("name", _names())
+def test_window_matches_baseline(pictures, name, tmp_path):
+    got = np.asarray(pictures[name])[..., :3]
+    w, h = (int(v) for v in name.split("_")[-2 if "_mode_" not in name else -3].split("x"))
+    assert got.shape[:2] == (h, w)
+    _check(name, got, tmp_path)
 
 
 @pytest.mark.parametrize("scene", SCENES)
@@ -81,8 +161,10 @@ def test_stage_texts_match_baseline(scene):
     SSIM barely notices a changed digit in a table, this does. Refreshed with the PNGs."""
     from ui.views.window import build_state, panel_text
 
-    shot = {k: v for k, v in SHOT.items() if k != "size"}
-    state = build_state(str(ROOT / "scenes" / f"{scene}.toml"), render_passes=False, **shot)
+    c = CASES[scene]
+    state = build_state(str(ROOT / "scenes" / f"{scene}.toml"), seed=SEED, pixel_xy=c["pixel"],
+                        photons=PHOTONS, passes=PASSES, render_passes=False,
+                        estimators=c["estimators"])
     texts = []
     for stage in STAGES:
         state.stepper.go(stage)
@@ -103,26 +185,16 @@ def test_coverage_and_pass_match_baseline(tmp_path):
     from ui.views.window import screenshot
 
     out = tmp_path / "point_coverage_pass1.png"
-    shot = dict(SHOT, estimator="plane-t1t2", pixel_xy=(30, 20))
-    img = screenshot(str(ROOT / "scenes" / "point.toml"), "intersect", out=str(out),
-                     pass_index=1, coverage=True, **shot)
-    assert img.shape[:2] == (450, 800)
-    baseline = BASELINES / "point_coverage_pass1.png"
-    if UPDATE:
-        baseline.write_bytes(out.read_bytes())
-        return
-    if not baseline.exists():
-        pytest.fail(f"missing baseline {baseline}; create it with PSURF_UPDATE_BASELINES=1")
-    ssim = structural_similarity(_read(baseline), _read(out), channel_axis=2, data_range=255)
-    assert ssim >= SSIM_MIN, f"coverage: SSIM {ssim:.3f} < {SSIM_MIN} (new picture: {out})"
+    img = screenshot(str(ROOT / "scenes" / "point.toml"), "intersect", (30, 20),
+                     "plane-t1t2", seed=SEED, out=str(out), size=(1024, 768), passes=PASSES,
+                     photons=PHOTONS, pass_index=1, coverage=True)
+    assert img.shape[:2] == (768, 1024)
+    _check("point_coverage_pass1", np.asarray(img)[..., :3], tmp_path)
 
 
-def test_stages_differ():
+def test_stages_differ(pictures):
     """Guard against a baseline set where every stage shows the same picture."""
-    imgs = [_read(BASELINES / f"point_{s}.png") for s in STAGES
-            if (BASELINES / f"point_{s}.png").exists()]
-    if len(imgs) < 2:
-        pytest.skip("baselines not written yet")
+    imgs = [np.asarray(pictures[f"point_1024x768_{s}"])[..., :3] for s in STAGES]
     for a, b in zip(imgs, imgs[1:], strict=False):
         assert structural_similarity(a, b, channel_axis=2, data_range=255) < 0.99
 
@@ -150,7 +222,10 @@ def _cli(argv, capsys):
     (["--pixel", "1,1", "--estimator", "reference"], "photon estimator"),
     (["--pixel", "1,1", "--passes", "2", "--pass", "2"], "passes 0..1"),
     (["--pixel", "1,1", "--estimators", "planes,nope"], "unknown estimator"),
-    (["--pixel", "1,1", "--estimators", "reference,planes"], "--estimators reference"),
+    (["--pixel", "1,1", "--estimators", "reference"], "--estimators reference"),
+    (["--pixel", "1,1", "--estimators", "planes,beams", "--inspect", "nope"],
+     "--inspect nope: not one of --estimators"),
+    (["--pixel", "1,1", "--estimator", "paper-mutli"], "did you mean 'paper-multi'?"),
 ])
 def test_cli_errors_are_one_line(extra, message, capsys, tmp_path):
     argv = ["screenshot", str(ROOT / "scenes" / "point.toml"), "--stage", "trace",

@@ -134,7 +134,7 @@ def test_debouncer_applies_the_last_value_once_quiet():
 
 
 def test_coverage_mesh_outline():
-    from ui.views.primitives_view import coverage_mesh
+    from ui.views.coverage_view import coverage_mesh
 
     m = np.zeros((4, 5), bool)
     m[1, 1:3] = True  # two pixels side by side: 6 outline edges, 2 cells
@@ -252,7 +252,7 @@ def test_right_click_picks_a_primitive(window):
     s.stepper.go("create")
     app.redraw()
     ren = app.p.renderers[0]
-    name = next(n for n in ren.actors if n.startswith("prims-") and not n.endswith("edges"))
+    name = next(n for n in ren.actors if n.startswith("prims-") and n.endswith(":mesh"))
     mesh = pv.wrap(ren.actors[name].GetMapper().GetInput())
     cell = int(np.argmax(mesh.compute_cell_sizes(length=False, volume=False)["Area"]))
     centre = mesh.extract_cells([cell]).center
@@ -260,7 +260,7 @@ def test_right_click_picks_a_primitive(window):
     ren.WorldToDisplay()
     dx, dy, _ = ren.GetDisplayPoint()
     target = app.pick_primitive((dx, dy))
-    assert target is not None and target[0] == name.split("-", 1)[1]
+    assert target is not None and target[0] == name.split("-", 1)[1][: -len(":mesh")]
     assert target[2] in set(mesh.cell_data["prim_row"].tolist())
     assert s.coverage and coverage_target(s) == target and s.coverage_mask is not None
     assert app.pick_primitive((700, 100)) is None  # the stage panel: no primitive
@@ -332,9 +332,9 @@ def test_progressive_panels_tick_pick_and_modes():
     from ui.views.interactive import App
     from ui.views.window import attach_progressive, build_state, compose, make_plotter
 
-    state = build_state(POINT, "mis:plane-t1t2+planes", seed=1, pixel_xy=(32, 24),
-                        photons=100, render_passes=False)
-    state.extra_specs = ("planes",)
+    state = build_state(POINT, seed=1, pixel_xy=(32, 24), photons=100, render_passes=False,
+                        estimators=["mis:plane-t1t2+planes", "planes"])
+    assert state.inspected == 0  # the MIS set
     attach_progressive(state, workers=0)
     plotter = make_plotter((800, 450), off_screen=True)
     try:
@@ -348,7 +348,7 @@ def test_progressive_panels_tick_pick_and_modes():
         tiles = controls.image_tiles(plotter.renderers[app._panel_index("render")], 64, 48)
         assert len(tiles) == 2 and tiles[0][2] != 1.0  # two estimators, scaled tiles
         assert app.click(app.pixel_display("render", (7, 9))) == "pixel"
-        assert state.pixel_xy == (7, 9)
+        assert state.pixel_xy == (7, 9) and state.inspected == 0
         assert app.click(app.pixel_display("variance", (60, 1))) == "pixel"
         assert state.pixel_xy == (60, 1)
         app.set_pixel((32, 24))
@@ -379,9 +379,10 @@ def test_progressive_panels_tick_pick_and_modes():
         plotter.close()
 
 
-@pytest.mark.parametrize("value, message", [("nope", "unknown"), ("reference,planes",
-                                                                    "photon estimator first"),
-                                           ("planes,", "estimator specs")])
+@pytest.mark.parametrize("value, message", [("nope", "unknown"), ("reference",
+                                                                    "needs a photon estimator"),
+                                           ("planes,", "estimator specs"),
+                                           ("paper-mutli", "did you mean 'paper-multi'?")])
 def test_window_estimators_flag_errors(value, message, capsys, tmp_path):
     import app
 

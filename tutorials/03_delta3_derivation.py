@@ -47,7 +47,7 @@ import pyvista as pv
 
 from psurf_core import RenderSettings, load_scene
 from psurf_core.inspect import inspect_pixel, reconstruct_hit
-from ui.views import hits_view, primitives_view, scene_view
+from ui.views import hits_view, palette, primitives_view, scene_view
 
 pv.OFF_SCREEN = True
 scene_view.plain_text()
@@ -314,7 +314,7 @@ scene_view.add_scene(p, point2, box_opacity=0.03, labels=False)
 tname, b = str(tc.technique[rc]), int(tc.batch[rc])
 mesh, _ = primitives_view.primitive_mesh(ins_c.techniques[tname], ins_c.prims[(tname, b)],
                                          [int(tc.prim[rc])], point2, 0.0)
-p.add_mesh(mesh, color=scene_view.family_colour("cones"), opacity=0.3)
+p.add_mesh(mesh, color=palette.technique_colour(tname), opacity=0.3)
 p.add_mesh(pv.lines_from_points(recon["photon_polyline"]), color=OK["grey"], line_width=6)
 hits_view.add_query_ray(p, ins_c)
 p.add_mesh(parallelepiped(hit, *(edge * c for c in cols)), color=OK["sky_blue"], opacity=0.6,

@@ -48,7 +48,7 @@ import pyvista as pv
 
 from psurf_core import RenderSettings, load_scene
 from psurf_core.inspect import inspect_pixel, reconstruct_hit
-from ui.views import primitives_view, scene_view
+from ui.views import palette, primitives_view, scene_view
 
 pv.OFF_SCREEN = True
 scene_view.plain_text()
@@ -175,7 +175,7 @@ for i, sh in enumerate(shots):
     p.add_mesh(box.outline(), color="#777777", line_width=2)
     p.add_mesh(pv.Sphere(radius=0.06, center=light.position), color=scene_view.LIGHT_COLOUR)
     tech = sh["ins"].techniques[str(sh["ins"].table.technique[sh["row"]])]
-    p.add_mesh(sh["mesh"], color=scene_view.family_colour(tech.family), opacity=0.55,
+    p.add_mesh(sh["mesh"], color=palette.technique_colour(tech.name), opacity=0.55,
                show_edges=False, culling=False)
     own = np.vstack([light.position, sh["recon"]["photon_polyline"][1:]])
     p.add_mesh(pv.lines_from_points(own), color=OK["grey"], line_width=6)

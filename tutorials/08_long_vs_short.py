@@ -50,7 +50,7 @@ from psurf_core import RenderSettings, images, load_scene, parse_estimator, rend
 from psurf_core.inspect import inspect_pixel
 from psurf_core.render import PassRecord
 from psurf_core.sampling import sample_free_flight
-from ui.views import primitives_view, scene_view
+from ui.views import palette, primitives_view, scene_view
 
 pv.OFF_SCREEN = True
 scene_view.plain_text()
@@ -160,8 +160,8 @@ for i, (label, (long_name, short_name)) in enumerate(list(PAIRS.items())[:2]):
         p.add_mesh(box.outline(), color="#777777", line_width=3)
         p.add_mesh(scene_view.quad(light.corner, light.edge_u, light.edge_v),
                    color=scene_view.LIGHT_COLOUR, show_edges=True, edge_color="black")
-        fam = ins.estimator.techniques[0].family
-        p.add_mesh(mesh, color=scene_view.family_colour(fam), opacity=0.55, culling=False)
+        tname = ins.estimator.techniques[0].name  # one colour per technique, as in the app
+        p.add_mesh(mesh, color=palette.technique_colour(tname), opacity=0.55, culling=False)
         p.add_mesh(pv.lines_from_points(path), color="black", line_width=7)
         p.add_mesh(pv.PolyData(path[1:]).glyph(geom=pv.Sphere(radius=0.04), scale=False,
                                                orient=False), color="black")

@@ -19,21 +19,19 @@ import sys
 
 import numpy as np
 
+from .suggest import (  # noqa: F401 - the command line's shared names live here
+    CliError,
+    Parser,
+    did_you_mean,
+    estimator_names,
+    explain_estimator_error,
+    join_negative_values,
+)
+
 PROG = "psurf"
 
 #: Exit code after Ctrl-C (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
-
-
-class CliError(Exception):
-    """A bad command line or input: printed as one ``psurf: error:`` line, exit code 2."""
-
-
-class Parser(argparse.ArgumentParser):
-    """``ArgumentParser`` whose errors are :class:`CliError` (one line, exit 2, no usage)."""
-
-    def error(self, message: str):  # noqa: D102 - argparse hook
-        raise CliError(message)
 
 
 def fail(message: str) -> int:
@@ -132,6 +130,11 @@ def window_size(text: str) -> tuple[int, int]:
     return pair(text, "W,H (two integers >= 64)", 64)
 
 
+def resolution(text: str) -> tuple[int, int]:
+    """Flag type: an image resolution ``W,H`` in pixels (each >= 8), overriding the scene's."""
+    return pair(text, "W,H (two integers >= 8: the image's width and height in pixels)", 8)
+
+
 # --------------------------------------------------------------------------- checks
 
 
@@ -156,7 +159,17 @@ def load_scene(path: str):
     return _load(path)
 
 
-def parse_estimator_flag(spec: str, scene):
+def with_resolution(scene, size):
+    """``scene`` rendered at ``size = (W, H)`` pixels instead of its own (None: unchanged)."""
+    if size is None:
+        return scene
+    from dataclasses import replace
+
+    w, h = (int(v) for v in size)
+    return replace(scene, camera=replace(scene.camera, width=w, height=h))
+
+
+def parse_estimator_flag(spec: str, scene, flag: str = "--estimator"):
     """Parse ``--estimator`` (unknown names and inapplicable techniques become CliError)."""
     from psurf_core import SceneError, parse_estimator
     from psurf_core.techniques import UnknownTechnique
@@ -166,11 +179,35 @@ def parse_estimator_flag(spec: str, scene):
     except SceneError:
         raise
     except UnknownTechnique as e:
-        raise CliError(f"--estimator: {e} (see 'python app.py --help')") from None
+        raise CliError(f"{flag}: {explain_estimator_error(e)} (see 'python app.py --help')") \
+            from None
     except ModuleNotFoundError as e:
         raise CliError(f"--estimator {spec!r}: not available in this build ({e})") from None
     except ValueError as e:  # e.g. a malformed mis: spec
-        raise CliError(f"--estimator {spec!r}: {e}") from None
+        raise CliError(f"{flag} {spec!r}: {e}") from None
+
+
+def load_reference(path: str, scene):
+    """``psurf_core.study.load_reference`` with a clear line for a file that is no .npz
+    render at all (a scene file given by mistake) instead of numpy's message.
+
+    Raises
+    ------
+    SceneError
+        Naming the file and what is wrong with it.
+    """
+    import zipfile
+
+    from psurf_core import SceneError
+    from psurf_core.study import load_reference as _load
+
+    path = os.fspath(path)
+    if os.path.isfile(path) and not zipfile.is_zipfile(path):
+        kind = "a TOML scene file" if path.lower().endswith(".toml") else "not an .npz archive"
+        raise SceneError(f"--reference {path}: {kind}, not a rendered image; make one with "
+                         f"'python app.py render SCENE.toml --estimator reference --out "
+                         f"ref.npz'")
+    return _load(path, scene)
 
 
 def with_scatter(scene, lo: int | None, hi: int | None):

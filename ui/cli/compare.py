@@ -22,12 +22,16 @@ import textwrap
 from .common import (
     PROG,
     CliError,
+    explain_estimator_error,
     fail,
+    load_reference,
     nonneg_int,
     positive_float,
     positive_int,
+    resolution,
     scatter_int,
     shrink,
+    with_resolution,
     with_scatter,
 )
 from .limits import check_memory, load_scene_within, probe_writable
@@ -120,6 +124,8 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                         "estimator in --estimators order; 'auto' (the default) times a pass "
                         "of each estimator and sizes its passes so that the budget holds "
                         "about 48 of them")
+    p.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
+                   help="render at W x H pixels instead of the scene's resolution")
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
     p.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
@@ -158,7 +164,8 @@ def _parse(spec: str, scene):
     except SceneError as e:
         raise _Bad(str(e)) from None
     except UnknownTechnique as e:
-        raise _Bad(f"--estimators: {e} (see 'python app.py --help')") from None
+        raise _Bad(f"--estimators: {explain_estimator_error(e)} (see 'python app.py --help')") \
+            from None
     except ModuleNotFoundError as e:
         raise _Bad(f"--estimators {spec!r}: not available in this build ({e})") from None
     except ValueError as e:
@@ -202,9 +209,13 @@ def _check_memory(args, scene, ests, settings, photons, render_reference: bool) 
 
     from psurf_core.budget import render_need
     from psurf_core.estimators import parse_estimator
+    from psurf_core.pass_size import PROBE_PHOTONS
 
     runs = list(ests) + ([parse_estimator("reference", scene)] if render_reference else [])
-    sets = [replace(settings, photons=p) for p in photons] + [settings] * render_reference
+    # 'auto' is sized later by a timed pass of PROBE_PHOTONS photons; checked as that pass
+    # (the images the study keeps, which do not depend on it, are most of the need).
+    sets = ([replace(settings, photons=PROBE_PHOTONS if p == "auto" else int(p))
+             for p in photons] + [settings] * render_reference)
     # Kept: the reference's mean and variance, each estimator's, and the runs' final images
     # (with their stack for the spread across runs).
     kept = 2 + 2 * len(ests) + 2 * args.runs
@@ -269,7 +280,8 @@ def run_compare(args) -> int:
     try:
         _check_out(args.out)
         try:
-            scene = load_scene_within(args.scene, args.memory_budget)  # meshes checked first
+            scene = with_resolution(load_scene_within(args.scene, args.memory_budget),
+                                    args.resolution)  # meshes checked before loading
         except SceneError as e:
             raise _Bad(str(e)) from None
         scene = with_scatter(scene, args.min_scatter, args.max_scatter)
@@ -277,7 +289,7 @@ def run_compare(args) -> int:
         reference = None
         if args.reference is not None:
             try:
-                reference = st.load_reference(args.reference, scene)
+                reference = load_reference(args.reference, scene)
             except SceneError as e:
                 raise _Bad(str(e)) from None
         settings = _settings(args)

@@ -10,18 +10,20 @@ Usage (the window)::
     panels = PanelView()                                   # keeps the panel actors
     mode = "render"                                        # "techniques", "bounces"
 
-    # every timer tick (100-200 ms): poll never waits; draw only when passes arrived
+    # every timer tick (100-200 ms): poll never waits; draw only when something arrived
     if prog.poll():
         panels.draw(plotter, [(0, 1), (0, 2)], prog, mode, pixel_xy,
                     reference=None,          # (H, W, 3) image: relMSE per estimator
                     estimator=None,          # which run techniques/bounces break down
                     technique=None, k=None)  # bounces: one technique per K, or one K
         plotter.render()                     # draw() holds rendering; render once after it
+    for text in prog.take_notices(): ...     # a worker died and was restarted, kernels compiled
     # 'm': mode = next_mode(mode); panels.draw(...); plotter.render()
     # play / pause: prog.pause() / prog.resume()
-    # sliders, estimator toggles, new pixel pass, 'r': prog.reset(scene=..., estimators=[...],
+    # sliders, estimator toggles, 'r': prog.reset(scene=..., estimators=[...],
     #     settings=..., seed=...)   (drops the passes; stale worker results are ignored)
-    # prog.runs[i].acc (Welford), .seconds, .breakdown (BreakdownAccumulator or None);
+    # prog.runs[i].acc (Welford), .seconds, .breakdown (BreakdownAccumulator or None),
+    #     .note(now) ("compiling kernels (first run)...", "" once passes arrive)
     # prog.summary(reference) -> rows with "ratio" (Var at equal time) and "relmse"
     # window closed: prog.close()
 
@@ -39,79 +41,55 @@ estimator.
 
 Scheduling: the worker renders whole passes, each time for the estimator that has spent the
 least wall time so far (ties: list order), so the estimators are compared at equal time (up to
-one pass). Pass ``i`` of an estimator is seeded by ``SeedSequence([seed, i])`` (as every
-render), and ``poll()`` merges each estimator's passes in pass order into a
+one pass). Compiling an estimator's kernels (numba; a minute or more for an MIS preset on a
+cold cache) happens before its first pass and is not render time: the panels say "compiling
+kernels (first run)" meanwhile, and its seconds are reported apart (:attr:`EstimatorRun.
+compile_seconds`). Pass ``i`` of an estimator is seeded by ``SeedSequence([seed, i])`` (as
+every render), and ``poll()`` merges each estimator's passes in pass order into a
 :class:`~psurf_core.accumulate.Welford`, so the accumulated images are bit-identical to
 ``render(..., passes=n, seed=seed)``. With ``workers=N > 1`` worker ``w`` renders passes
 ``w, w + N, ...`` of every estimator; out-of-order arrivals wait until their predecessors came.
 
-The worker is a separate process (``multiprocessing`` ``spawn`` context: safer beside VTK than
-``fork``, and it uses the second core). Results come back through a bounded queue, so a UI that
-stops polling stops the worker after a few passes instead of filling memory.
+A dying worker loses nothing merged: when a worker process exits unasked (killed, out of
+memory, a crash) ``poll()`` restarts the workers on a job that continues after the merged
+passes (and the seconds spent), so the images stay bit-identical to a serial render, and
+:meth:`Progressive.take_notices` says what happened. After :data:`MAX_RESTARTS` deaths within
+:data:`RESTART_WINDOW` seconds it stops restarting and reports an error instead.
+
+The worker processes (:mod:`ui.cli.background`, ``spawn`` context, lower priority, a pipe
+pair each) run :func:`ui.cli.progressive_worker.worker_main`; results come back through a
+bounded buffer, so a UI that stops polling stops the worker after a few passes instead of
+filling memory.
 """
 
 from __future__ import annotations
 
-import multiprocessing as mp
-import queue as _queue
 import time
-import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from psurf_core.accumulate import Welford
-from psurf_core.breakdown import (
-    DEFAULT_K_MAX,
-    BreakdownAccumulator,
-    BreakdownLayout,
-    render_pass_breakdown,
-)
+from psurf_core.breakdown import DEFAULT_K_MAX, BreakdownAccumulator, BreakdownLayout
 from psurf_core.estimators import parse_estimator
-from psurf_core.geometry import blockers_of
-from psurf_core.render import RenderSettings, render_pass
+from psurf_core.render import RenderSettings
 
-__all__ = ["EstimatorRun", "Progressive", "Job"]
+from .background import Workers, describe_exit
+from .equal_time import compare_rows
+from .progressive_worker import Engine, Job, worker_main
 
-#: Results waiting in the queue before the worker pauses (back-pressure).
+__all__ = ["EstimatorRun", "Job", "Progressive", "compare_rows"]
+
+#: Results waiting in the queue per worker before it pauses (back-pressure).
 QUEUE_SIZE = 6
 #: Seconds ``poll`` spends at most unpacking results (keeps the UI frame short).
 POLL_BUDGET = 0.03
-#: Niceness added to worker processes: on a busy machine the UI's frames (software OpenGL
-#: wants every core) come before background passes.
-WORKER_NICE = 10
-
-
-@dataclass(frozen=True)
-class Job:
-    """What a worker renders (picklable: sent to the worker process).
-
-    Attributes
-    ----------
-    scene : Scene
-        The scene object itself (it may differ from the file: the window's sliders).
-    specs : tuple of str
-        Estimator specs, in display order (the first is the comparison's baseline).
-    settings : RenderSettings
-    seed : int
-    breakdown : bool
-        Also send per-technique / per-K breakdown stacks (photon estimators only).
-    k_max : int
-        Breakdown scatter-count bins (see :mod:`psurf_core.breakdown`).
-    max_passes : int or None
-        Passes per estimator after which it stops.
-    max_seconds : float or None
-        Wall seconds per estimator after which it stops (equal time).
-    """
-
-    scene: object
-    specs: tuple
-    settings: RenderSettings
-    seed: int = 0
-    breakdown: bool = False
-    k_max: int = DEFAULT_K_MAX
-    max_passes: int | None = None
-    max_seconds: float | None = None
+#: A warm-up longer than this (wall seconds) is shown as "compiling kernels (first run)" while
+#: it lasts (numba loads a cached kernel in about a second); one that took this many CPU
+#: seconds was a compilation (a busy machine stretches wall time, not CPU time).
+COMPILE_NOTE_AFTER, COMPILE_CPU = 1.5, 4.0
+#: Give up restarting after this many worker deaths within :data:`RESTART_WINDOW` seconds.
+MAX_RESTARTS, RESTART_WINDOW = 3, 120.0
 
 
 @dataclass
@@ -125,9 +103,13 @@ class EstimatorRun:
     acc : Welford
         (H, W, 3) mean and per-pass variance over the merged passes.
     seconds : float
-        Wall seconds the worker(s) spent on the merged passes.
+        Wall seconds the worker(s) spent on the merged passes (compilation excluded).
     breakdown : BreakdownAccumulator or None
         When breakdowns were asked for and the estimator has techniques.
+    compile_seconds : float
+        Seconds spent compiling (or loading) its kernels, not counted in :attr:`seconds`.
+    warming_since : float or None
+        ``time.monotonic()`` when its kernels started compiling (None: not compiling now).
     """
 
     spec: str
@@ -135,6 +117,8 @@ class EstimatorRun:
     acc: Welford
     seconds: float = 0.0
     breakdown: BreakdownAccumulator | None = None
+    compile_seconds: float = 0.0
+    warming_since: float | None = None
     pending: dict = field(default_factory=dict)  # pass index -> (image, seconds, stacks)
 
     @property
@@ -145,124 +129,16 @@ class EstimatorRun:
     def label(self) -> str:
         return self.spec
 
-
-class _Engine:
-    """Renders the passes of a :class:`Job` one at a time (in a worker or in the UI)."""
-
-    def __init__(self, job: Job, first: int = 0, stride: int = 1):
-        self.job = job
-        scene = job.scene
-        self.ests = [parse_estimator(s, scene) for s in job.specs]
-        self.blockers = blockers_of(scene)
-        self.layouts = [BreakdownLayout.of(scene, e, job.k_max)
-                        if job.breakdown and not e.reference else None for e in self.ests]
-        self.next = [int(first)] * len(self.ests)
-        self.stride = int(stride)
-        self.spent = [0.0] * len(self.ests)
-
-    def choose(self) -> int | None:
-        """The estimator to render next: least time spent among those not finished."""
-        j = self.job
-        ok = [e for e in range(len(self.ests))
-              if (j.max_passes is None or self.next[e] < j.max_passes)
-              and (j.max_seconds is None or self.spent[e] < j.max_seconds)]
-        return min(ok, key=lambda e: (self.spent[e], e)) if ok else None
-
-    def render(self, e: int):
-        """Render estimator ``e``'s next pass: ``(e, pass_index, seconds, image, stacks)``."""
-        j = self.job
-        i = self.next[e]
-        t0 = time.perf_counter()
-        if self.layouts[e] is not None:
-            img, b = render_pass_breakdown(j.scene, self.ests[e], i, j.seed, j.settings,
-                                           blockers=self.blockers, layout=self.layouts[e])
-            stacks = (b.unweighted, b.weighted)
-        else:
-            img = render_pass(j.scene, self.ests[e], i, j.seed, j.settings,
-                              blockers=self.blockers)
-            stacks = None
-        dt = time.perf_counter() - t0
-        self.spent[e] += dt
-        self.next[e] += self.stride
-        return e, i, dt, img, stacks
-
-
-def _worker_main(worker_id: int, n_workers: int, control, results) -> None:
-    """Worker process: waits for ``("job", gen, Job)``, renders, sends ``("pass", gen, ...)``.
-
-    Messages in: ``("job", gen, job)``, ``("pause", bool)``, ``("stop",)``. Out: ``("pass",
-    gen, e, i, seconds, image, stacks)``, ``("idle", gen, worker_id)`` when the job is done,
-    ``("error", gen, text)``.
-    """
-    engine, gen, paused = None, -1, False
-    try:
-        import os
-
-        os.nice(WORKER_NICE)
-    except (AttributeError, OSError):  # not POSIX, or not allowed: run at normal priority
-        pass
-
-    def handle(msg) -> bool:
-        """Apply a control message; False to stop."""
-        nonlocal engine, gen, paused
-        if msg[0] == "stop":
-            return False
-        if msg[0] == "pause":
-            paused = bool(msg[1])
-        elif msg[0] == "job":
-            gen = msg[1]
-            try:
-                engine = _Engine(msg[2], worker_id, n_workers)
-            except Exception as ex:  # bad job: report, wait for the next one
-                engine = None
-                results.put(("error", gen, f"{type(ex).__name__}: {ex}"))
-        return True
-
-    idle_sent = None
-    while True:
-        try:  # drain control messages without waiting while there is work
-            wait = engine is None or paused
-            msg = control.get(timeout=0.2) if wait else control.get_nowait()
-            if not handle(msg):
-                return
-            continue
-        except _queue.Empty:
-            pass
-        if engine is None or paused:
-            continue
-        e = engine.choose()
-        if e is None:
-            if idle_sent != gen:
-                results.put(("idle", gen, worker_id))
-                idle_sent = gen
-            try:
-                if not handle(control.get(timeout=0.2)):
-                    return
-            except _queue.Empty:
-                pass
-            continue
-        my_gen = gen
-        try:
-            out = ("pass", my_gen, *engine.render(e))
-        except Exception as ex:
-            results.put(("error", my_gen, f"{type(ex).__name__}: {ex}\n"
-                                          f"{traceback.format_exc(limit=4)}"))
-            engine = None
-            continue
-        # Bounded queue: wait for the UI, but stay responsive to stop / a new job.
-        while True:
-            try:
-                results.put(out, timeout=0.1)
-                break
-            except _queue.Full:
-                try:
-                    msg = control.get_nowait()
-                except _queue.Empty:
-                    continue
-                if not handle(msg):
-                    return
-                if gen != my_gen:
-                    break  # a new job: this pass is stale, drop it
+    def note(self, now: float | None = None) -> str:
+        """What the panels say about this run before its first pass ("" once it has one)."""
+        if self.acc.n:
+            return ""
+        if self.warming_since is None:
+            return "waiting for the first pass..."
+        now = time.monotonic() if now is None else now
+        if now - self.warming_since >= COMPILE_NOTE_AFTER:
+            return f"compiling kernels (first run), {now - self.warming_since:.0f} s..."
+        return "loading kernels..."
 
 
 class Progressive:
@@ -300,13 +176,14 @@ class Progressive:
         if int(workers) < 0:
             raise ValueError(f"workers must be >= 0, got {workers}")
         self.workers = int(workers)
-        self._procs: list = []
-        self._control: list = []
-        self._results = None
+        self._pool: Workers | None = None
         self._gen = 0
         self._idle: set = set()
         self.errors: list[str] = []
-        self._dead_reported = False
+        self._notices: list[str] = []
+        #: Worker processes restarted after a death, since this object was made.
+        self.restarts = 0
+        self.stopped = False  # gave up restarting
         self.paused = False
         self._start(Job(scene, tuple(estimators), settings or RenderSettings(), int(seed),
                         bool(breakdown), int(k_max), max_passes, max_seconds))
@@ -326,24 +203,19 @@ class Progressive:
             self.runs.append(EstimatorRun(spec, est, Welford.empty((cam.height, cam.width, 3)),
                                           breakdown=b))
         self._idle = set()
+        self.stopped = False
         if self.workers == 0:
-            self._engine = _Engine(job)
+            self._engine = Engine(job)
             return
-        if not self._procs:
-            ctx = mp.get_context("spawn")
-            self._results = ctx.Queue(maxsize=QUEUE_SIZE * self.workers)
-            for w in range(self.workers):
-                c = ctx.Queue()
-                p = ctx.Process(target=_worker_main, args=(w, self.workers, c, self._results),
-                                daemon=True, name=f"psurf-progressive-{w}")
-                p.start()
-                self._procs.append(p)
-                self._control.append(c)
+        if self._pool is None:
+            self._pool = Workers(worker_main, self.workers, "psurf-progressive", QUEUE_SIZE)
+        self._send_job(job)
+
+    def _send_job(self, job: Job) -> None:
         self._gen += 1
-        for c in self._control:
-            c.put(("job", self._gen, job))
-            if self.paused:
-                c.put(("pause", True))
+        self._pool.send(("job", self._gen, job))
+        if self.paused:
+            self._pool.send(("pause", True))
 
     def reset(self, scene=None, estimators=None, settings: RenderSettings | None = None,
               seed: int | None = None, **changes) -> None:
@@ -353,43 +225,32 @@ class Progressive:
         ``changes`` may also set ``breakdown``, ``k_max``, ``max_passes``, ``max_seconds``.
         """
         j = self.job
-        from dataclasses import replace
-
         job = replace(j, scene=j.scene if scene is None else scene,
                       specs=j.specs if estimators is None else tuple(estimators),
                       settings=j.settings if settings is None else settings,
-                      seed=j.seed if seed is None else int(seed), **changes)
+                      seed=j.seed if seed is None else int(seed), start=None, spent=None,
+                      **changes)
         self.errors = []
+        if self._pool is not None and (self.stopped or self._pool.deaths()):
+            self._pool.restart()  # 'r' after the workers gave up: fresh processes
         self._start(job)
 
     def pause(self) -> None:
         """Stop rendering after the pass in flight (``resume`` continues)."""
         self.paused = True
-        for c in self._control:
-            c.put(("pause", True))
+        if self._pool is not None:
+            self._pool.send(("pause", True))
 
     def resume(self) -> None:
         self.paused = False
-        for c in self._control:
-            c.put(("pause", False))
+        if self._pool is not None:
+            self._pool.send(("pause", False))
 
     def close(self) -> None:
         """Stop and join the worker processes (idempotent)."""
-        for c in self._control:
-            try:
-                c.put(("stop",))
-            except (OSError, ValueError):
-                pass
-        for p in self._procs:
-            p.join(timeout=3.0)
-            if p.is_alive():
-                p.terminate()
-                p.join(timeout=1.0)
-        for q in [*self._control, self._results]:
-            if q is not None:
-                q.cancel_join_thread()  # unread results must not hold up the exit
-                q.close()
-        self._procs, self._control, self._results = [], [], None
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
 
     def __enter__(self) -> Progressive:
         return self
@@ -402,6 +263,11 @@ class Progressive:
             self.close()
         except Exception:
             pass
+
+    @property
+    def pids(self) -> list[int]:
+        """Process ids of the workers (empty for ``workers=0``)."""
+        return self._pool.pids if self._pool is not None else []
 
     # ------------------------------------------------------------------ results
     @property
@@ -421,6 +287,12 @@ class Progressive:
             return True
         return len(self._idle) == self.workers and not any(r.pending for r in self.runs)
 
+    def take_notices(self) -> list[str]:
+        """What happened since the last call, for the status line (a worker died and was
+        restarted, an estimator's kernels were compiled); each notice is returned once."""
+        out, self._notices = self._notices, []
+        return out
+
     def _take(self, e: int, i: int, dt: float, img, stacks) -> None:
         run = self.runs[e]
         run.pending[i] = (img, dt, stacks)
@@ -431,8 +303,25 @@ class Progressive:
             if stacks is not None and run.breakdown is not None:
                 run.breakdown.add_arrays(*stacks)
 
+    def _warmed(self, e: int, seconds: float, cpu: float) -> None:
+        run = self.runs[e]
+        run.warming_since = None
+        run.compile_seconds += seconds
+        if cpu >= COMPILE_CPU:
+            self._notices.append(f"{run.spec}: kernels compiled in {seconds:.0f} s (first "
+                                 "run; not counted as render time)")
+        elif seconds >= COMPILE_NOTE_AFTER:
+            self._notices.append(f"{run.spec}: kernels loaded in {seconds:.0f} s (not "
+                                 "counted as render time)")
+
+    def _render_here(self, e: int) -> None:
+        """``workers=0``: warm up (compile) estimator ``e`` if needed, render its next pass."""
+        if not self._engine.warmed[e]:
+            self._warmed(e, *self._engine.warm(e))
+        self._take(*self._engine.render(e))
+
     def poll(self, budget: float = POLL_BUDGET) -> int:
-        """Merge the passes that arrived; never waits (``workers=0``: render one pass).
+        """Merge what arrived; never waits (``workers=0``: render one pass).
 
         Parameters
         ----------
@@ -442,7 +331,7 @@ class Progressive:
         Returns
         -------
         int
-            Passes received (0: nothing new to draw).
+            Passes received plus status changes (0: nothing new to draw).
         """
         if self.workers == 0:
             if self.paused:
@@ -450,29 +339,59 @@ class Progressive:
             e = self._engine.choose()
             if e is None:
                 return 0
-            self._take(*self._engine.render(e))
+            self._render_here(e)
             return 1
+        if self._pool is None:
+            return 0
         got = 0
         t0 = time.perf_counter()
         while time.perf_counter() - t0 < budget:
-            try:
-                msg = self._results.get_nowait()
-            except _queue.Empty:
+            msg = self._pool.get()
+            if msg is None:
                 break
             if msg[1] != self._gen:
-                continue  # from before the last reset
-            if msg[0] == "pass":
+                continue  # from before the last reset or restart
+            kind = msg[0]
+            if kind == "pass":
                 self._take(*msg[2:])
-                got += 1
-            elif msg[0] == "idle":
+            elif kind == "warming":
+                self.runs[msg[2]].warming_since = time.monotonic()
+            elif kind == "warmed":
+                self._warmed(msg[2], msg[3], msg[4])
+            elif kind == "idle":
                 self._idle.add(msg[2])
-            elif msg[0] == "error":
+            elif kind == "error":
                 self.errors.append(msg[2])
-        if not got and not self._dead_reported and any(p.exitcode is not None
-                                                        for p in self._procs):
-            self._dead_reported = True  # killed (out of memory, a signal): say so once
-            self.errors.append("a progressive worker process exited unexpectedly")
+            got += 1
+        if not got and not self.stopped:
+            got += self._check_workers()
         return got
+
+    def _check_workers(self) -> int:
+        """Restart dead workers on the merged passes (1: something to redraw)."""
+        dead = self._pool.deaths()
+        if not dead:
+            return 0
+        how = describe_exit(dead[0][1])
+        merged = sum(r.acc.n for r in self.runs)
+        if self._pool.recent_restarts(RESTART_WINDOW) >= MAX_RESTARTS:
+            self.stopped = True
+            self.errors.append(f"the background render process keeps dying ({how}, "
+                               f"{MAX_RESTARTS + 1} times in {RESTART_WINDOW:.0f} s): rendering "
+                               f"stopped with the {merged} passes merged (r starts over)")
+            return 1
+        for run in self.runs:  # out-of-order passes died with their worker's successors
+            run.pending.clear()
+            run.warming_since = None
+        self._pool.restart()
+        self.restarts += 1
+        self._idle = set()
+        job = replace(self.job, start=tuple(r.acc.n for r in self.runs),
+                      spent=tuple(r.seconds for r in self.runs))
+        self._send_job(job)
+        self._notices.append(f"the background render process died ({how}); restarted it, "
+                             f"keeping the {merged} passes already merged")
+        return 1
 
     def run(self, passes: int | None = None, timeout: float = 600.0) -> None:
         """Block until every estimator has ``passes`` merged passes (default: until
@@ -497,12 +416,9 @@ class Progressive:
                         key=lambda k: (self._engine.spent[k], k))
                 if e is None:
                     break
-                self._take(*self._engine.render(e))
-            else:
-                if not self.poll(budget=1.0):
-                    time.sleep(0.01)
-                if any(not p.is_alive() for p in self._procs):
-                    raise RuntimeError("a progressive worker process died")
+                self._render_here(e)
+            elif not self.poll(budget=1.0):
+                time.sleep(0.01)
             if self.errors:
                 raise RuntimeError(f"progressive worker failed: {self.errors[0]}")
             if time.perf_counter() - t0 > timeout:
@@ -512,51 +428,3 @@ class Progressive:
     def summary(self, reference: np.ndarray | None = None) -> list[dict]:
         """One row per estimator (see :func:`compare_rows`)."""
         return compare_rows(self.runs, reference)
-
-
-def compare_rows(runs, reference: np.ndarray | None = None) -> list[dict]:
-    """The equal-time comparison numbers shown above the panels.
-
-    Parameters
-    ----------
-    runs : list of EstimatorRun (or objects with ``label``, ``acc``, ``seconds``)
-    reference : (H, W, 3) ndarray, optional
-        Ground truth for relMSE (``psurf_core.study.relmse``).
-
-    Returns
-    -------
-    list of dict
-        ``label``, ``passes``, ``seconds``, ``mean_variance`` (``mean(var / passes)``, the
-        variance of the current mean image; None below two passes), ``ratio``
-        (``mean_variance * seconds`` over the first estimator's: the variance ratio at equal
-        time, corrected for the last pass's overshoot; at equal passes (``mean_variance *
-        passes``) when some run reports 0 seconds; None when undefined), ``equal``
-        (``'time'`` or ``'passes'``), ``relmse``.
-    """
-    from psurf_core.study import relmse
-
-    rows = []
-    for r in runs:
-        n = r.acc.n
-        mv = float(np.mean(r.acc.variance) / n) if n >= 2 else None
-        rows.append({
-            "label": r.label, "passes": n, "seconds": float(r.seconds), "mean_variance": mv,
-            "relmse": (relmse(r.acc.mean, reference) if reference is not None and n else None),
-        })
-    base = rows[0] if rows else None
-    # Untimed runs (screenshots: fixed passes, every second reported as 0 so the picture is
-    # deterministic) are compared at equal passes instead of at equal time.
-    timed = all(row["seconds"] > 0 for row in rows)
-    for row in rows:
-        ok = (base is not None and row["mean_variance"] is not None
-              and bool(base["mean_variance"]))
-        if not ok:
-            row["ratio"] = None
-        elif timed:
-            row["ratio"] = (row["mean_variance"] * row["seconds"]
-                            / (base["mean_variance"] * base["seconds"]))
-        else:
-            row["ratio"] = row["mean_variance"] * row["passes"] / (
-                base["mean_variance"] * base["passes"])
-        row["equal"] = "time" if timed else "passes"
-    return rows

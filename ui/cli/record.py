@@ -34,6 +34,8 @@ from .common import (
     pixel,
     positive_float,
     positive_int,
+    resolution,
+    with_resolution,
     write_all,
 )
 from .limits import check_memory, load_scene_within, probe_writable
@@ -69,6 +71,8 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help=f"photons per pass (default: {DEFAULT_PHOTONS})")
     p.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="W,H",
                    help="picture size in pixels (default: {},{})".format(*DEFAULT_SIZE))
+    p.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
+                   help="render at W x H pixels instead of the scene's resolution")
     p.add_argument("--memory-budget", type=positive_int, default=None, metavar="MIB",
                    help="memory limit of the run in MiB (it also bounds the chunked ray x "
                         "primitive work; default: the memory available, and chunks of "
@@ -131,8 +135,9 @@ def add_record_parsers(sub) -> None:
 
 
 def _scene_and_estimators(args, specs, need_breakdown: bool):
-    scene = load_scene_within(args.scene, args.memory_budget)
-    ests = [parse_estimator_flag(s, scene) for s in specs]
+    scene = with_resolution(load_scene_within(args.scene, args.memory_budget), args.resolution)
+    flag = "--estimators" if len(specs) > 1 else "--estimator"
+    ests = [parse_estimator_flag(s, scene, flag) for s in specs]
     photon = [e for e in ests if not e.reference]
     if need_breakdown and not photon:
         raise CliError(f"--mode {getattr(args, 'mode', 'techniques')}: needs a photon "
@@ -219,7 +224,7 @@ def run_record(args) -> int:
     _check_memory(args, scene, ests, settings, args.mode != "render", "the recording")
     reference = None
     if args.reference is not None:
-        from psurf_core.study import load_reference
+        from .common import load_reference
 
         reference = load_reference(args.reference, scene).mean  # SceneError: one line
     FigureMaker = _offscreen()

@@ -1,8 +1,9 @@
 """``python app.py render``: render a scene progressively to .npz (and .png/.exr).
 
 The command (:func:`add_render_parser`, :func:`cmd_render`), its defaults, and the ``.npz`` it
-writes (:func:`npz_payload`, also used by ``demo``). The flag types and helpers it shares with
-the other commands are :mod:`ui.cli.common`'s, the checkpoints :mod:`ui.cli.checkpoint`'s and
+writes (:func:`npz_payload`: mean, variance, counts, provenance and the scene file's SHA-256,
+also used by ``demo``). The flag types and helpers it shares with the other commands are
+:mod:`ui.cli.common`'s, the checkpoints :mod:`ui.cli.checkpoint`'s and
 ``--dask``/``--workers``/``--jobs`` :mod:`ui.cli.parallel`'s. No pyvista here: only argparse,
 numpy and :mod:`psurf_core`. ``app.py`` wires it in with::
 
@@ -66,9 +67,11 @@ from .common import (
     positive_float,
     positive_int,
     progress,
+    resolution,
     scatter_int,
     shrink,
     sigint_deferred,
+    with_resolution,
     with_scatter,
     write_all,
 )
@@ -126,6 +129,8 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
                    help="estimator name (list below)")
     r.add_argument("--photons", type=positive_int, default=DEFAULT_PHOTONS, metavar="N",
                    help=f"photons per pass (default {DEFAULT_PHOTONS}; the reference ignores it)")
+    r.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
+                   help="render at W x H pixels instead of the scene's [camera] resolution")
     r.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
     budget = r.add_mutually_exclusive_group()
@@ -203,6 +208,10 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
         "min_scatter": np.int64(scene.min_scatter),
         "max_scatter": np.int64(scene.max_scatter),
     }
+    if os.path.isfile(scene.path):  # which scene file, exactly (a bundled reference is checked)
+        from psurf_core.checkpoint import file_sha256
+
+        data["scene_sha256"] = np.str_(file_sha256(scene.path))
     # Pass moments for the reliability check of compare --reference (psurf_core.reliability).
     from psurf_core.reliability import npz_fields
 
@@ -240,7 +249,8 @@ def cmd_render(args) -> int:
             raise CliError(f"--resume {args.resume}: no such directory")
         checkpoint_dir_ok("--resume", args.resume, must_be_empty=False)
 
-    scene = load_scene_within(args.scene, args.memory_budget)  # meshes checked before loading
+    scene = with_resolution(load_scene_within(args.scene, args.memory_budget),  # meshes first
+                            args.resolution)
     scene = with_scatter(scene, args.min_scatter, args.max_scatter)
     est = parse_estimator_flag(args.estimator, scene)
 

@@ -17,7 +17,17 @@ import os
 
 from ui.views.stepper import DEFAULT_PASSES, DEFAULT_PHOTONS, STAGES
 
-from .common import CliError, fail, nonneg_int, pixel, positive_int, window_size
+from .common import (
+    CliError,
+    explain_estimator_error,
+    fail,
+    nonneg_int,
+    pixel,
+    positive_int,
+    resolution,
+    window_size,
+    with_resolution,
+)
 from .limits import check_memory, load_scene_within, probe_writable
 
 
@@ -39,7 +49,7 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=nonneg_int, default=0, help="random seed (default: 0)")
     p.add_argument("--out", required=True, metavar="shot.png", help="PNG to write")
     p.add_argument("--size", type=window_size, default=(1600, 900), metavar="W,H",
-                   help="image size in pixels (default: 1600,900)")
+                   help="picture (window) size in pixels (default: 1600,900)")
     p.add_argument("--passes", type=positive_int, default=DEFAULT_PASSES, metavar="P",
                    help=f"passes in the render panels (default: {DEFAULT_PASSES})")
     p.add_argument("--photons", type=positive_int, default=DEFAULT_PHOTONS, metavar="N",
@@ -50,8 +60,15 @@ def add_screenshot_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--pass", dest="pass_index", type=nonneg_int, default=0, metavar="N",
                    help="the inspected pass, 0 <= N < --passes (default: 0)")
     p.add_argument("--estimators", default=None, metavar="A,B",
-                   help="image panels: these estimators side by side, the first inspected "
-                        "(replaces --estimator; each gets --passes passes)")
+                   help="image panels: these estimators side by side (replaces --estimator; "
+                        "each gets --passes passes; Var ratios relative to the first)")
+    p.add_argument("--inspect", default=None, metavar="SPEC",
+                   help="which of --estimators the stages inspect (default: the first MIS "
+                        "set)")
+    p.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
+                   help="render at W x H pixels instead of the scene's resolution")
+    p.add_argument("--layout", default="split", choices=("split", "images", "3d"),
+                   help="how the width is shared (the window's z key; default: split)")
     p.add_argument("--mode", default="render", choices=("render", "techniques", "bounces"),
                    help="image-panel mode (the window's m key; default: render)")
     p.add_argument("--reference", default=None, metavar="FILE.npz",
@@ -99,15 +116,19 @@ def run_screenshot(args) -> int:
         if any(not e for e in specs):
             return fail(f"--estimators {args.estimators}: must be a comma-separated list of "
                          "estimator specs")
+    flag = "--estimators" if args.estimators is not None else "--estimator"
     try:
-        scene = load_scene_within(args.scene, None)  # meshes checked before they load
-        est = parse_estimator(specs[0], scene)
-        for extra in specs[1:]:
-            parse_estimator(extra, scene)
-    except (SceneError, UnknownTechnique, CliError) as e:
+        # meshes checked before they load
+        scene = with_resolution(load_scene_within(args.scene, None), args.resolution)
+        ests = [parse_estimator(spec, scene) for spec in specs]
+    except (SceneError, CliError) as e:
         return fail(str(e))
-    if est.reference:
-        flag = "--estimators" if args.estimators is not None else "--estimator"
+    except UnknownTechnique as e:
+        return fail(f"{flag}: {explain_estimator_error(e)}")
+    if args.inspect is not None and args.inspect not in specs:
+        return fail(f"--inspect {args.inspect}: not one of {flag} ({', '.join(specs)})")
+    if all(e.reference for e in ests) or (args.inspect is not None
+                                           and ests[specs.index(args.inspect)].reference):
         return fail(f"{flag} reference: the stages need a photon estimator "
                      "(the path tracer has no photons or primitives)")
     cam = scene.camera
@@ -135,9 +156,10 @@ def run_screenshot(args) -> int:
         screenshot(args.scene, args.stage, (x, y), specs[0], args.seed, out,
                    size=tuple(args.size), passes=args.passes, hit=args.hit,
                    photons=args.photons, pass_index=args.pass_index, coverage=args.coverage,
-                   estimators=specs[1:], mode=args.mode, reference=args.reference)
+                   estimators=specs, mode=args.mode, reference=args.reference,
+                   inspect=args.inspect, resolution=args.resolution, focus=args.layout)
     except (SceneError, UnknownTechnique, ValueError) as e:
-        return fail(str(e))
+        return fail(explain_estimator_error(e))
     except (ImportError, RuntimeError) as e:
         return fail(f"off-screen rendering is unavailable ({type(e).__name__}: {e}); "
                      "it needs VTK with EGL or OSMesa (libegl1 / libosmesa6)")

@@ -33,6 +33,7 @@ from vtkmodules.vtkRenderingCore import (  # noqa: E402
     vtkRenderer,
     vtkRenderWindow,
     vtkTextActor,
+    vtkTextProperty,
     vtkTextRenderer,
 )
 
@@ -52,6 +53,7 @@ __all__ = [
     "vtkSliderRepresentation2D",
     "vtkSliderWidget",
     "vtkTextActor",
+    "vtkTextProperty",
     "vtkTextRenderer",
 ]
 

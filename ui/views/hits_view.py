@@ -1,53 +1,32 @@
-"""Intersect, Evaluate and Reconstruct in 3D: the query ray, its hits, the normals, the
-evaluate table and the reconstructed path (pyvista; the numbers come from
-:mod:`psurf_core.inspect`)."""
+"""Intersect, Evaluate and Reconstruct in 3D: the query ray, its hits, the normals and the
+reconstructed path (pyvista; the numbers come from :mod:`psurf_core.inspect`, the panel's text
+from :mod:`ui.views.stage_text`).
+
+Colours: techniques keep theirs (:mod:`ui.views.palette`); what is not a technique is drawn in
+black, white and greys (the query ray, the hits, psi and the normals, the reconstructed path),
+so no colour means two things.
+"""
 
 from __future__ import annotations
 
-import textwrap
-
 import numpy as np
 
-from . import scene_view
+from . import label_layout, scene_view
 from ._vtk import pv
+from .palette import OKABE_ITO, technique_colour
 from .primitives_view import add_legend, add_primitives, primitive_mesh
-from .scene_view import (
-    FONT,
-    FONT_SMALL,
-    HIGHLIGHT,
-    OKABE_ITO,
-    TEXT_COLOUR,
-    pt,
-    px,
-    scale_of,
-)
+from .scene_view import FONT, FONT_SMALL, TEXT_COLOUR, pt, px, scale_of
+from .stage_text import NORMAL_ROWS, TABLE_ROWS, default_hit, hit_order  # noqa: F401
 
-#: Rows of the evaluate table shown (largest contributions first).
-TABLE_ROWS = 9
-NORMAL_COLOUR = OKABE_ITO["vermillion"]
-PSI_COLOUR = OKABE_ITO["black"]
-HIT_COLOUR = OKABE_ITO["orange"]
-PATH_COLOUR = OKABE_ITO["vermillion"]
-#: Normals and psi are drawn at this many hits (largest contributions).
-NORMAL_ROWS = 3
-#: Colours of the MIS members' surfaces in Reconstruct (one per member, in group order;
-#: Okabe-Ito, colour-blind safe; several members share a family, so families won't do).
-MEMBER_COLOURS = [OKABE_ITO[c] for c in ("blue", "orange", "green", "purple", "sky_blue",
-                                          "vermillion", "yellow", "grey")]
+QUERY_COLOUR = "#1a1a1a"
+NORMAL_COLOUR = "#000000"
+PSI_COLOUR = "#707070"
+HIT_COLOUR = "#ffffff"
+PATH_COLOUR = "#000000"
+LEADER_COLOUR = "#555555"
 
 
 # --------------------------------------------------------------------------- selection
-def hit_order(inspection) -> np.ndarray:
-    """Table rows by decreasing contribution: row ``i`` of the display is ``hit_order[i]``."""
-    return inspection.table.by_contribution()
-
-
-def default_hit(inspection) -> int | None:
-    """The hit the Reconstruct stage shows when none is asked: the largest contribution."""
-    t = inspection.table
-    return None if len(t) == 0 else int(t.by_contribution()[0])
-
-
 def hit_selection(inspection, rows=None) -> dict:
     """``(technique, batch) -> primitive rows`` of the primitives the given hits come from."""
     t = inspection.table
@@ -72,43 +51,137 @@ def add_query_ray(plotter: pv.Plotter, inspection, *, width: float = 8.0) -> Non
             b = a = float(np.linalg.norm(inspection.scene.camera.position
                                          - 0.5 * (inspection.scene.medium.bounds_min
                                                   + inspection.scene.medium.bounds_max)))
-        plotter.add_mesh(pv.Line(o, o + a * d), color="#555555", line_width=px(3),
+        plotter.add_mesh(pv.Line(o, o + a * d), color="#777777", line_width=px(3),
                          name=f"ray{i}-out")
         if b > a:
-            plotter.add_mesh(pv.Line(o + a * d, o + b * d), color=HIGHLIGHT, line_width=px(width),
-                             name=f"ray{i}-in")
+            plotter.add_mesh(pv.Line(o + a * d, o + b * d), color=QUERY_COLOUR,
+                             line_width=px(width), name=f"ray{i}-in")
             end = o + b * d
             plotter.add_mesh(pv.Cone(center=end + 0.9 * sc * d, direction=d, height=1.8 * sc,
-                                     radius=0.7 * sc, resolution=24), color=HIGHLIGHT,
+                                     radius=0.7 * sc, resolution=24), color=QUERY_COLOUR,
                              name=f"ray{i}-tip")
 
 
+def add_labels(plotter: pv.Plotter, scene, points: np.ndarray, labels: list, *, dist: float,
+               name: str, size: float = FONT, colour: str = TEXT_COLOUR,
+               camera=None) -> object:
+    """Labels that are all drawn and never cover each other or a labelled point: each is
+    placed on screen for the view's camera (``camera``, default the overview) at the first
+    free spot around its point, about ``dist`` (world units) away
+    (:func:`ui.views.label_layout.place`), and tied to it by a thin leader line."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    if not len(pts):
+        return None
+    off, lead = _label_offsets(plotter, scene, pts, list(labels), dist, pt(size), camera)
+    anchors = pts + off
+    n = len(pts)
+    lines = np.column_stack([np.full(n, 2), np.arange(n), np.arange(n) + n]).ravel()
+    plotter.add_mesh(pv.PolyData(np.vstack([pts, pts + lead]), lines=lines),
+                     color=LEADER_COLOUR, line_width=px(1.5), name=f"{name}-leaders")
+    actor = plotter.add_point_labels(anchors, list(labels), font_size=pt(size),
+                                     text_color=colour, shape_color="white",
+                                     shape_opacity=0.85, show_points=False,
+                                     always_visible=True, name=name)
+    actor.GetMapper().PlaceAllLabelsOn()  # every label drawn (they are apart already)
+    return actor
+
+
+def _label_offsets(plotter, scene, pts, labels, dist: float, font_px: int, camera):
+    """World offsets ``(anchors, leader ends)`` of ``labels`` at ``pts`` for the plotter's
+    current renderer (its size in pixels and view angle) seen from ``camera``."""
+    cam = camera or scene_view.overview_camera(scene)
+    x0, y0, x1, y1 = plotter.renderer.GetViewport()
+    w, h = plotter.window_size
+    view = ((x1 - x0) * w, (y1 - y0) * h, plotter.renderer.GetActiveCamera().GetViewAngle())
+    # pyvista draws point labels bold
+    sizes = [scene_view.text_extent(str(t), font_px, bold=True) for t in labels]
+    _, depth = label_layout.project(pts, cam, view)
+    dist_px = float(np.clip(dist * np.median(label_layout.pixels_per_unit(depth, view)),
+                            10.0, 40.0))
+    return label_layout.world_offsets(pts, sizes, cam, view, dist_px)
+
+
 def add_hit_points(plotter: pv.Plotter, inspection, rows, *, labels: bool = True,
-                   radius_scale: float = 0.7) -> None:
-    """Hit points as orange spheres, labelled ``#i`` (display order) when asked."""
+                   radius_scale: float = 0.7, camera=None) -> None:
+    """Hit points: the table's top :data:`TABLE_ROWS` as white spheres, labelled ``#i``
+    (display order) when asked, every other hit as a small point (an MIS set can have
+    thousands: one sphere mesh each would take seconds to build and draw)."""
     t = inspection.table
     sc = scale_of(inspection.scene)
     rows = np.asarray(rows, dtype=np.int64)
-    if rows.size:
-        g = pv.PolyData(t.point[rows]).glyph(geom=pv.Sphere(radius=radius_scale * sc),
-                                             scale=False, orient=False)
+    if not rows.size:
+        return
+    rank = np.empty(len(t), dtype=np.int64)
+    rank[hit_order(inspection)] = np.arange(len(t))
+    top = rows[rank[rows] < TABLE_ROWS]
+    top = top[np.argsort(rank[top])]
+    rest = rows[rank[rows] >= TABLE_ROWS]
+    # (pyvista's add_mesh(name=X) removes the actors named "X-...": "hits" goes first)
+    if top.size:
+        g = pv.PolyData(t.point[top]).glyph(
+            geom=pv.Sphere(radius=radius_scale * sc, theta_resolution=16, phi_resolution=12),
+            scale=False, orient=False)
         plotter.add_mesh(g, color=HIT_COLOUR, smooth_shading=True, name="hits")
-    if labels and rows.size:
-        order = hit_order(inspection)
-        rank = {int(r): i for i, r in enumerate(order)}
-        shown = [r for r in rows if rank[int(r)] < TABLE_ROWS]
-        if shown:
-            up = inspection.scene.camera.image_up
-            pts = t.point[shown] + 1.8 * sc * up
-            plotter.add_point_labels(pts, [f"#{rank[int(r)]}" for r in shown],
-                                     font_size=pt(FONT), text_color=TEXT_COLOUR,
-                                     shape_color="white", shape_opacity=0.85,
-                                     show_points=False, always_visible=True, name="hit-labels")
+    if rest.size:
+        plotter.add_mesh(pv.PolyData(t.point[rest]), color=HIT_COLOUR, point_size=px(7),
+                         render_points_as_spheres=True, name="hits-rest")
+    if top.size:
+        if labels:
+            add_ray_labels(plotter, inspection, top, [f"#{int(rank[r])}" for r in top],
+                           camera=camera)
 
 
-def add_normals(plotter: pv.Plotter, inspection, rows) -> None:
-    """At each hit: the camera direction ``psi`` (black) and the scaled normal ``n``
-    (vermillion, labelled with the hit's table number; length proportional to ``|n|``,
+def add_ray_labels(plotter: pv.Plotter, inspection, rows, labels: list, *,
+                   name: str = "hit-labels", camera=None) -> object:
+    """Labels of hits on the query ray that never cover each other: lined up beside the ray
+    on screen, in the order of the hits along it, one box apart
+    (:func:`ui.views.label_layout.line_up`, for the view's camera and size), and tied to their
+    hits by leader lines. Hits cluster along the ray, so labels next to their hits would
+    pile up; every label is drawn (none is hidden where two would touch)."""
+    t = inspection.table
+    scene = inspection.scene
+    sc = scale_of(scene)
+    rows = np.asarray(rows, dtype=np.int64)
+    if not rows.size:
+        return None
+    cam = camera or scene_view.overview_camera(scene)
+    order = np.argsort(t.s[rows], kind="stable")
+    pts = t.point[rows][order]
+    names = [labels[i] for i in order]
+    x0, y0, x1, y1 = plotter.renderer.GetViewport()
+    w, h = plotter.window_size
+    view = ((x1 - x0) * w, (y1 - y0) * h, plotter.renderer.GetActiveCamera().GetViewAngle())
+    screen, _ = label_layout.project(pts, cam, view)
+    ends, _ = label_layout.project(pts[:1] + t.psi[rows[order[0]]][None] * sc, cam, view)
+    sizes = [scene_view.text_extent(str(x), pt(FONT), bold=True) for x in names]
+    anchors_px, leaders_px = label_layout.line_up(screen, ends[0] - screen[0], sizes,
+                                                  0.6 * pt(FONT))
+    # back to the world, in the plane parallel to the image through the hits' middle
+    _, _, right, up = label_layout.view_basis(cam)
+    mid = pts.mean(axis=0)
+    (mid_px,), (mid_depth,) = label_layout.project(mid[None], cam, view)
+    per_px = 1.0 / float(label_layout.pixels_per_unit(mid_depth, view))
+
+    def world(p):
+        d = (p - mid_px[None]) * per_px
+        return mid[None] + d[:, :1] * right[None] + d[:, 1:] * up[None]
+
+    anchors, leader_ends = world(anchors_px), world(leaders_px)
+    n = len(pts)
+    cells = np.column_stack([np.full(n, 2), np.arange(n), np.arange(n) + n]).ravel()
+    plotter.add_mesh(pv.PolyData(np.vstack([pts, leader_ends]), lines=cells),
+                     color=LEADER_COLOUR, line_width=px(1.5), name=f"{name}-leaders")
+    actor = plotter.add_point_labels(anchors, names, font_size=pt(FONT),
+                                     text_color=TEXT_COLOUR, shape_color="white",
+                                     shape_opacity=0.85, show_points=False,
+                                     always_visible=True, name=name)
+    actor.GetMapper().PlaceAllLabelsOn()
+    return actor
+
+
+def add_normals(plotter: pv.Plotter, inspection, rows, *, camera=None) -> None:
+    """At each hit: the camera direction ``psi`` (grey) and the scaled normal ``n``
+    (black, labelled with the hit's table number; length proportional to ``|n|``,
     clamped to stay readable)."""
     t = inspection.table
     sc = scale_of(inspection.scene)
@@ -139,10 +212,12 @@ def add_normals(plotter: pv.Plotter, inspection, rows) -> None:
                                                  shaft_radius=0.05)),
                          color=NORMAL_COLOUR, name="normal-arrows")
         tips = t.point[rows][ok] + unit * length[:, None]
-        tips = tips + label_offsets(inspection.scene, tips, 1.5 * sc)
         rank = {int(r): i for i, r in enumerate(hit_order(inspection))}
+        names = [f"n #{rank[int(r)]}" for r in rows[ok]]
+        tips = tips + _label_offsets(plotter, inspection.scene, tips, names, 1.5 * sc,
+                                     pt(FONT_SMALL), camera)[0]
         actor = plotter.add_point_labels(
-            tips, [f"n #{rank[int(r)]}" for r in rows[ok]],
+            tips, names,
             font_size=pt(FONT_SMALL), text_color=NORMAL_COLOUR, shape_color="white",
             shape_opacity=0.85, show_points=False, always_visible=True, name="normal-labels")
         actor.GetMapper().PlaceAllLabelsOn()
@@ -155,10 +230,32 @@ def add_hit_primitives(plotter: pv.Plotter, inspection, rows, *, legend: bool = 
                           name="hitprims", legend=legend, width=4.0, list_empty=False)
 
 
-def add_reconstruction(plotter: pv.Plotter, inspection, recon: dict) -> None:
-    """The full path a hit implies (thick, labelled vertices) and, thin and dashed-grey,
-    the photon's own sampled vertices it replaced."""
-    sc = scale_of(inspection.scene)
+def path_frame(recon: dict, scene) -> tuple:
+    """``(centre, radius)`` of the reconstructed path (light .. x0, its hit on the ray); the
+    photon's own sampled vertices are left out (traced as in an infinite medium, they may lie
+    far outside the box)."""
+    pts = np.asarray(recon["polyline"], dtype=float)[:-1]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    radius = max(float(np.linalg.norm(pts - centre, axis=1).max()), 6.0 * scale_of(scene))
+    return centre, radius
+
+
+def reconstruct_camera(recon: dict, scene, margin: float = 1.35):
+    """A camera ``(position, focal_point, view_up)`` that frames the reconstructed path (the
+    Reconstruct stage's auto-zoom), looking from the overview's direction."""
+    pos, focal, up = (np.asarray(v, float) for v in scene_view.overview_camera(scene))
+    back = (pos - focal) / np.linalg.norm(pos - focal)
+    centre, radius = path_frame(recon, scene)
+    dist = margin * radius / np.tan(np.radians(15.0))  # pyvista's 30 degree view angle
+    return [tuple(centre + dist * back), tuple(centre), tuple(up)]
+
+
+def add_reconstruction(plotter: pv.Plotter, inspection, recon: dict, *, camera=None) -> None:
+    """The full path a hit implies (thick, every vertex labelled: no two labels share one)
+    and, thin and grey, the photon's own sampled vertices it replaced."""
+    scene = inspection.scene
+    sc = scale_of(scene)
     own = np.asarray(recon["photon_polyline"])
     if len(own) > 1:
         plotter.add_mesh(pv.lines_from_points(own), color=OKABE_ITO["grey"], line_width=px(4),
@@ -166,39 +263,29 @@ def add_reconstruction(plotter: pv.Plotter, inspection, recon: dict) -> None:
     poly = np.asarray(recon["polyline"])
     plotter.add_mesh(pv.lines_from_points(poly[:-1]), color=PATH_COLOUR, line_width=px(9),
                      name="recon-path")
-    plotter.add_mesh(pv.Line(poly[-2], poly[-1]), color=HIGHLIGHT, line_width=px(3),
+    plotter.add_mesh(pv.Line(poly[-2], poly[-1]), color=QUERY_COLOUR, line_width=px(3),
                      name="recon-camera")
-    g = pv.PolyData(poly[:-1]).glyph(geom=pv.Sphere(radius=0.9 * sc), scale=False, orient=False)
+    _, radius = path_frame(recon, scene)
+    g = pv.PolyData(poly[:-1]).glyph(geom=pv.Sphere(radius=min(0.9 * sc, 0.04 * radius)),
+                                     scale=False, orient=False)
     plotter.add_mesh(g, color="black", name="recon-vertices")
-    # Vertices closer than a glyph share one label (x2 right next to the light, ...).
-    pts, labs = [], []
-    for v, lab in zip(poly[:-1], recon["labels"][:-1], strict=True):
-        if pts and np.linalg.norm(v - pts[-1]) < 1.2 * sc:
-            labs[-1] = f"{labs[-1]}, {lab}"
-        else:
-            pts.append(v)
-            labs.append(lab)
-    pts = np.array(pts)
-    offset = label_offsets(inspection.scene, pts, 2.4 * sc)
-    actor = plotter.add_point_labels(pts + offset, labs, font_size=pt(FONT),
-                                     text_color=TEXT_COLOUR, shape_color="white",
-                                     shape_opacity=0.85, show_points=False,
-                                     always_visible=True, name="recon-labels")
-    actor.GetMapper().PlaceAllLabelsOn()  # every vertex named, even where labels touch
+    add_labels(plotter, scene, poly[:-1], list(recon["labels"][:-1]),
+               dist=max(0.16 * radius, 1.5 * sc), name="recon-labels", camera=camera)
 
 
 def add_member_surfaces(plotter: pv.Plotter, inspection, recon: dict, members: dict, *,
                         opacity: float = 0.22) -> list:
     """Every MIS member's surface through the reconstructed path (the talk's Reconstruct:
-    one path, each technique's primitive through it, their ``Q`` and weights), one colour per
-    member; the hit's own technique is drawn stronger. Returns the legend entries.
+    one path, each technique's primitive through it, their ``Q`` and weights), each in its
+    technique's colour; the hit's own technique is drawn stronger. Returns the legend
+    entries.
 
     ``members`` is :func:`psurf_core.inspect.member_primitives` of ``recon``.
     """
     q_w = {name: (q, w) for name, q, w in recon["members"]}
     entries = []
-    for i, (name, (tech, prims, rows)) in enumerate(members.items()):
-        col = MEMBER_COLOURS[i % len(MEMBER_COLOURS)]
+    for name, (tech, prims, rows) in members.items():
+        col = technique_colour(name)
         q, w = q_w.get(name, (float("nan"), float("nan")))
         own = name == recon["technique"]
         label = f"{'> ' if own else ''}{name}  w {w:.2f}"
@@ -209,123 +296,17 @@ def add_member_surfaces(plotter: pv.Plotter, inspection, recon: dict, members: d
                                    inspection.radii.get(name, 0.0))
         if mesh.n_points:
             if how == "bounds":
-                plotter.add_mesh(mesh, color=col, line_width=px(3), name=f"member-{name}")
+                plotter.add_mesh(mesh, color=col, line_width=px(3), name=f"member-{name}:mesh")
             else:
                 plotter.add_mesh(mesh, color=col, opacity=0.55 if own else opacity,
-                                 show_edges=False, culling=False, name=f"member-{name}")
+                                 show_edges=False, culling=False, name=f"member-{name}:mesh")
                 edges = mesh.extract_feature_edges(boundary_edges=True, feature_edges=False,
                                                    manifold_edges=False,
                                                    non_manifold_edges=False)
                 if edges.n_points:
                     plotter.add_mesh(edges, color=col, line_width=px(4 if own else 2),
-                                     name=f"member-{name}-edges")
+                                     name=f"member-{name}:edges")
         entries.append([label, col])
     if entries:
         add_legend(plotter, entries, loc="lower right")
     return entries
-
-
-def label_offsets(scene, pts: np.ndarray, dist: float) -> np.ndarray:
-    """(N, 3) world offsets for labels of ``pts`` that keep them apart on screen.
-
-    Greedy, in the plane of the overview view: each label takes, of eight directions, the
-    one whose label position is farthest from every vertex and every label placed so far.
-    """
-    pos, focal, up = (np.asarray(v, float) for v in scene_view.overview_camera(scene))
-    back = (pos - focal) / np.linalg.norm(pos - focal)
-    up = up / np.linalg.norm(up)
-    right = np.cross(up, back)
-    ang = np.radians([90, 45, 135, 0, 180, 270, 315, 225])
-    cands = np.cos(ang)[:, None] * right[None] + np.sin(ang)[:, None] * up[None]
-
-    def screen(x):
-        return np.stack([x @ right, x @ up], axis=-1)
-
-    taken = list(screen(pts))
-    out = np.zeros_like(pts)
-    for i, p in enumerate(pts):
-        spots = screen(p[None] + dist * cands)
-        gap = np.min(np.linalg.norm(spots[:, None] - np.array(taken)[None], axis=-1), axis=1)
-        best = int(np.argmax(np.round(gap / dist, 1)))  # ties keep the earlier (upper) spot
-        out[i] = dist * cands[best]
-        taken.append(spots[best])
-    return out
-
-
-# --------------------------------------------------------------------------- text
-def _g(x: float) -> str:
-    if not np.isfinite(x):
-        return "   -   "
-    return f"{x:7.1e}" if (x != 0 and (abs(x) < 1e-2 or abs(x) >= 1e3)) else f"{x:7.3f}"
-
-
-def _short(name: str, n: int = 13) -> str:
-    name = name.replace("-short", "-s")
-    return name if len(name) <= n else name[: n - 1] + "~"
-
-
-def evaluate_table_text(inspection, max_rows: int = TABLE_ROWS) -> str:
-    """The evaluate table as monospace text (largest contributions first).
-
-    Columns: display index, technique and primitive id (its row in that technique's
-    primitives of the hit's photon batch), K, distance ``s``, ``|n.psi|``, the Jacobian factor
-    ``1/|n.psi|``, ``f = value |n.psi|``, MIS weight ``w`` and the contribution (mean over
-    RGB); ``!`` marks a near-singular hit, ``x`` one whose path is invalid (Evaluate returned
-    0: occluded, or a vertex outside). A first line names each technique's family.
-    """
-    t = inspection.table
-    px, py = inspection.pixel_xy
-    fam: dict = {}
-    for n, f in zip(t.technique, t.family, strict=True):
-        fam.setdefault(str(f), {})[_short(str(n), 12)] = None
-    lines = [f"pixel ({px}, {py})  pass {inspection.pass_index}  "
-             f"{len(t)} hits  {inspection.n_photons} photons"]
-    lines += textwrap.wrap("; ".join(f"{f}: {' '.join(ns)}" for f, ns in fam.items()) or "-",
-                           width=74, initial_indent="families: ", subsequent_indent="  ")
-    lines.append(" # technique   prim  K     s    |n.psi| 1/|n.psi|    f     w   contrib")
-    order = hit_order(inspection)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        jac = 1.0 / t.n_dot_psi
-    for i, r in enumerate(order[:max_rows]):
-        mark = "x" if not np.any(t.value[r]) else ("!" if t.near_singular[r] else " ")
-        lines.append(f"{i:2d}{mark}{_short(str(t.technique[r]), 12):<12s}{int(t.prim[r]):4d} "
-                     f"{int(t.K[r]):2d} {t.s[r]:6.3f} {_g(t.n_dot_psi[r])} {_g(jac[r])} "
-                     f"{_g(float(np.mean(t.f[r])))} "
-                     f"{t.mis_weight[r]:4.2f} {_g(float(np.mean(t.contribution[r])))}")
-    if len(t) > max_rows:
-        rest = order[max_rows:]
-        lines.append(f"   ... {len(rest)} more hits, together "
-                     f"{_g(float(np.mean(t.contribution[rest].sum(axis=0)))).strip()}")
-    total = float(np.mean(t.total))
-    pv_ = float(np.mean(inspection.pixel_value))
-    ok = "= pixel value (check ok)" if inspection.sum_matches else "!= pixel value (MISMATCH)"
-    lines.append(f"sum {_g(total).strip()} {ok} {_g(pv_).strip()}")
-    shown = order[:max_rows]
-    if any(not np.any(t.value[r]) for r in shown):
-        lines.append("x invalid path (occluded or outside the box): adds 0")
-    if t.near_singular[shown].any():
-        lines.append("! near-singular: |n.psi| < 1e-3, huge 1/|n.psi|")
-    return "\n".join(lines)
-
-
-def reconstruct_text(inspection, recon: dict, display_index: int | None = None) -> str:
-    """The Reconstruct stage's panel: the hit, its path and every MIS member's ``Q`` and
-    weight on that same path."""
-    t = inspection.table
-    k = recon["row"]
-    idx = f"#{display_index}" if display_index is not None else f"row {k}"
-    lines = [f"hit {idx}: {recon['technique']}  K={recon['K']}  s={t.s[k]:.3f}",
-             "path: " + " -> ".join(lb.split(" ")[0] for lb in recon["labels"])]
-    if not recon["available"]:
-        lines.append(recon["note"])
-        return "\n".join(lines)
-    wt = recon["weighting"] or "none (single technique)"
-    lines.append(f"MIS weighting: {wt}")
-    lines.append("  member            Q = q|n.psi|   weight")
-    for name, q, w in recon["members"]:
-        me = "<" if name == recon["technique"] else " "
-        lines.append(f" {me}{_short(name, 17):<17s} {_g(q):>12s}   {w:5.3f}")
-    wsum = sum(w for _, _, w in recon["members"])
-    lines.append(f"weights sum to {wsum:.3f}; contribution "
-                 f"{_g(float(np.mean(t.contribution[k]))).strip()}")
-    return "\n".join(lines)

@@ -1,31 +1,37 @@
-"""The interactive window's bindings: :class:`App` (keys, mouse, widgets, timer, scripted
-steps) and :func:`run`, which opens the window.
+"""The interactive window's bindings: :class:`App` (keys, mouse, chips and buttons, sliders,
+timer) and :func:`run`, which opens the window.
 
 What the window shows (layout, composition of each stage, the off-screen
 :func:`ui.views.window.screenshot`) lives in :mod:`ui.views.window`; this module owns only what
-a person (or a test script) does to it. Keys are listed in :data:`ui.views.window.HELP`.
+a person (or a test script, :mod:`ui.views.script`) does to it. Keys are listed in
+:data:`ui.views.window.HELP`.
+
+Nothing here waits for a computation: the image panels render in a background process
+(:mod:`ui.cli.progressive`) and the stages' inspections in another (:mod:`ui.cli.inspector`);
+the timer (:meth:`App.tick`) takes what arrived. If the render process dies the window says
+so and restarts it, keeping the passes already merged.
 """
 
 from __future__ import annotations
 
 import os
 import time
-from dataclasses import replace
 
-import numpy as np
-
-from psurf_core.estimators import parse_estimator
 from psurf_core.render import render, render_pass
 
 from . import controls, primitives_view
-from ._vtk import pv, vtkCellPicker
+from ._vtk import pv
+from .footer import Controls
+from .interactive_params import EstimatorControls, MediumControls, Pointer, Recorder
+from .layout import next_focus
+from .panel_modes import MODE_HELP, next_mode
+from .script import SCRIPT_ENV, SIZE_ENV, play_step
+from .stepper import DEFAULT_PHOTONS, DEFAULT_SIZE
 from .window import (
     CELL_3D,
-    CELL_RENDER,
-    CELL_VARIANCE,
-    DEFAULT_PHOTONS,
-    DEFAULT_SIZE,
+    HELP,
     ViewState,
+    accept_results,
     attach_progressive,
     build_state,
     compose,
@@ -39,31 +45,27 @@ from .window import (
     update_coverage,
 )
 
-#: Environment variable with a script for the window (tests under Xvfb): steps separated by
-#: ``;``, one per timer tick: a key sym (``n``, ``space``, ``Right``), ``click:render:X,Y`` /
-#: ``click:variance:X,Y`` (a real mouse click on that image pixel's centre), ``shot:PATH.png``,
-#: ``passes>=N`` / ``passes+N`` (wait until the panels hold N passes / N more), ``wait`` or
-#: ``quit``.
-SCRIPT_ENV = "PSURF_WINDOW_SCRIPT"
-#: Environment variable ``W,H`` overriding the window size (a quicker scripted test).
-SIZE_ENV = "PSURF_WINDOW_SIZE"
+__all__ = ["App", "SCRIPT_ENV", "SIZE_ENV", "run"]
 
 
 def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: int = 0,
         pixel_xy=None, photons: int = DEFAULT_PHOTONS, size=DEFAULT_SIZE,
-        workers: int = 1, reference: str | None = None) -> None:
+        workers: int = 1, reference: str | None = None, resolution=None,
+        inspect=None) -> None:
     """Open the interactive window on ``scene_path`` (blocks until it is closed).
 
-    ``estimators`` (specs) are rendered side by side at equal time in a background process;
-    the first is the one the stages inspect (default: ``[estimator]``). ``reference`` (an
-    ``app.py render`` .npz of the scene) adds relMSE under each render.
+    ``estimators`` (specs) are rendered side by side at equal time in a background process
+    (default: ``[estimator]``); the stages inspect ``inspect`` (default: the first MIS set).
+    ``reference`` (an ``app.py render`` .npz of the scene) adds relMSE under each render;
+    ``resolution`` ``(W, H)`` overrides the scene's.
 
-    With :data:`SCRIPT_ENV` set, its steps are played through the window's own event path
-    (synthetic key presses and mouse clicks), one per timer tick, and ``quit`` closes it.
+    With :data:`ui.views.script.SCRIPT_ENV` set, its steps are played through the window's
+    own event path (synthetic key presses and mouse clicks), one per timer tick, and ``quit``
+    closes it.
     """
-    specs = list(estimators) if estimators else [estimator]
-    state = build_state(scene_path, specs[0], seed, pixel_xy, photons, render_passes=False)
-    state.extra_specs = tuple(specs[1:])
+    state = build_state(scene_path, estimator, seed, pixel_xy, photons, render_passes=False,
+                        estimators=estimators, inspect=inspect, resolution=resolution,
+                        inspector_workers=1)
     state.reference = load_reference_image(reference, state.scene)
     attach_progressive(state, workers=workers)
     if os.environ.get(SIZE_ENV):
@@ -71,8 +73,8 @@ def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: in
     plotter = make_plotter(size)
     app = App(plotter, state)
     try:
-        compose(plotter, state)
         app.bind()
+        app.redraw(keep_camera=False)
         script = os.environ.get(SCRIPT_ENV)
         if script:
             app.script = [step.strip() for step in script.split(";") if step.strip()]
@@ -81,21 +83,23 @@ def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: in
         app.close()
 
 
-class App:
-    """Key, mouse, widget and timer bindings of the interactive window.
+class App(Pointer, EstimatorControls, MediumControls, Recorder):
+    """Key, mouse, widget and timer bindings of the interactive window (what a click picks, the
+    inspected estimator and its members, the medium / photon controls and the recorder are
+    :mod:`ui.views.interactive_params`'s).
 
     Every action is a method, so tests drive them on an off-screen plotter; :meth:`click`
     takes a display position as VTK reports it (pixels, ``y`` from the bottom).
     """
 
-    #: Timer period (ms): progressive passes, debounced parameter changes, scripted steps.
+    #: Timer period (ms): progressive passes, inspections, debounced changes, script steps.
     TICK_MS = 200
 
     def __init__(self, plotter: pv.Plotter, state: ViewState, *, with_controls: bool = True):
         self.p = plotter
         self.s = state
-        if not state.base_spec:
-            state.base_spec = state.estimator.spec
+        if not state.specs:
+            state.specs = (state.estimator.spec,)
         if state.base_scene is None:
             state.base_scene = state.scene
         self.params = controls.MediumParams.of(state.scene, state.settings.photons)
@@ -107,10 +111,15 @@ class App:
         self._tags: dict = {}
         self.recorder = None
         self._gl_checked = False
+        self._size = tuple(plotter.window_size)
+        self._busy_shown = 0.0
         self._t0 = time.perf_counter()
+        self.scripted, self._said = False, ""
 
     @property
     def members(self) -> tuple:
+        """The inspected estimator's members (as opened: switched-off ones included)."""
+        from psurf_core.estimators import parse_estimator
 
         return controls.members(parse_estimator(self.s.base_spec, self.s.scene))
 
@@ -118,13 +127,13 @@ class App:
     def bind(self) -> None:
         p = self.p
         if self.with_controls:
-            self.controls = controls.Controls(p, self._actions(), on_slider=self.slide)
-            self.controls.draw(self.s, self.members, self.s.disabled)
+            self.controls = Controls(p, self._actions(), on_slider=self.slide)
+            self._draw_controls()
         if p.iren is None:  # no interactor: nothing to bind (methods can still be called)
             return
         # VTK's own character shortcuts (w, s, r, p, e, ...) would fight ours.
         p.iren.interactor.RemoveObservers("CharEvent")
-        for key in ("Up", "Down", "plus", "minus", "b", "v", "C"):
+        for key in ("Up", "Down", "plus", "minus", "b", "v", "C", "e", "l", "z"):
             p.clear_events_for_key(key, raise_on_missing=False)
         keys = {
             "n": self.next, "p": self.previous, "space": self.toggle_play, "r": self.reset,
@@ -136,6 +145,8 @@ class App:
             "comma": lambda: self.step_pass(-1), "period": lambda: self.step_pass(1),
             "c": self.toggle_coverage, "q": self.quit, "m": self.next_mode,
             "v": self.toggle_record, "w": self.toggle_sliders,
+            "e": lambda: self.next_estimator(1), "E": lambda: self.next_estimator(-1),
+            "l": self.toggle_scale, "z": self.next_focus,
             "x": lambda: self.nudge("sigma_s", -1), "X": lambda: self.nudge("sigma_s", 1),
             "a": lambda: self.nudge("sigma_a", -1), "A": lambda: self.nudge("sigma_a", 1),
             "g": lambda: self.nudge("g", -1), "G": lambda: self.nudge("g", 1),
@@ -160,7 +171,14 @@ class App:
                 "pass-": lambda: self.step_pass(-1), "pass+": lambda: self.step_pass(1),
                 "save": self.save, "help": self.toggle_help, "member": self.toggle_member,
                 "mode": self.next_mode, "record": self.toggle_record,
-                "sliders": self.toggle_sliders}
+                "sliders": self.toggle_sliders, "scale": self.toggle_scale,
+                "focus": self.next_focus, "inspect": self._inspect_action}
+
+    def _inspect_action(self, index: str | None = None) -> None:
+        if index is None:
+            self.next_estimator(1)
+        else:
+            self.inspect_estimator(int(index))
 
     def _on_left(self, obj, _event) -> None:
         if self.click(obj.GetEventPosition()) in ("button", "pixel"):
@@ -171,83 +189,30 @@ class App:
             obj.GetCommand(self._tags["right"]).SetAbortFlag(1)
 
     # ---------------------------------------------------------------- drawing
+    def _draw_controls(self) -> None:
+        if self.controls is None:
+            return
+        s = self.s
+        s.footer_rows = self.controls.draw(s, self.members, s.disabled,
+                                           recording=self.recorder is not None)
+        s.sliders_on = self.controls.sliders_on
+
     def redraw(self, keep_camera: bool = True) -> None:
         # Once a window is shown pyvista renders after every added actor; composing a stage
         # adds dozens, so rendering is held until the whole frame is built (as in lecture mode).
         held = self.p.suppress_rendering
         self.p.suppress_rendering = True
         try:
+            self._draw_controls()
             compose(self.p, self.s, keep_camera=keep_camera)
-            if self.controls is not None:
-                self.controls.draw(self.s, self.members, self.s.disabled,
-                                   recording=self.recorder is not None)
+            if self.controls is not None and self.s.layout is not None:
+                self.controls.place_sliders(self.s.layout.sliders)
+                self.controls.show_help(HELP, self.s.show_help)
         finally:
             self.p.suppress_rendering = held
         self.p.render()
 
-    # ---------------------------------------------------------------- mouse
-    def _panel_index(self, name: str) -> int:
-        cell = {"render": CELL_RENDER, "variance": CELL_VARIANCE}[name]
-        return self.p.renderers.loc_to_index(cell)
-
-    def click(self, display_xy) -> str | None:
-        """A left click at a display position: ``"button"`` (a button or member chip ran),
-        ``"pixel"`` (the render or variance panel picked a pixel), ``"panel"`` (an image
-        panel outside the image: nothing changes) or None (left to the camera style)."""
-        if self.controls is not None and self.controls.click(display_xy):
-            return "button"
-        vps = [r.GetViewport() for r in self.p.renderers]
-        i = controls.viewport_at(display_xy, self.p.window_size, vps)
-        if i not in (self._panel_index("render"), self._panel_index("variance")):
-            return None
-        cam = self.s.scene.camera
-        xy = controls.pick_pixel(self.p.renderers[i], display_xy, self.p.window_size,
-                                 cam.width, cam.height)
-        if xy is None:
-            return "panel"
-        self.set_pixel(xy)
-        return "pixel"
-
-    def pixel_display(self, panel: str, pixel_xy) -> tuple:
-        """Display position of the centre of image pixel ``pixel_xy`` on ``panel``
-        (``"render"`` or ``"variance"``): where a click picks it."""
-        ren = self.p.renderers[self._panel_index(panel)]
-        cam = ren.GetActiveCamera()
-        w, h = self.s.scene.camera.width, self.s.scene.camera.height
-        _, origin, spacing = controls.image_tiles(ren, w, h)[0]
-        fx, fy, _ = cam.GetFocalPoint()
-        return controls.panel_to_display(controls.pixel_centre(pixel_xy, h, origin, spacing),
-                                         self.p.window_size, ren.GetViewport(), (fx, fy),
-                                         cam.GetParallelScale())
-
-    def pick_primitive(self, display_xy):
-        """A right click in the 3D view: the primitive drawn under it becomes the coverage
-        target (``(technique, batch, prim)``), or None when there is none."""
-        vps = [r.GetViewport() for r in self.p.renderers]
-        i = controls.viewport_at(display_xy, self.p.window_size, vps)
-        if i != self.p.renderers.loc_to_index(CELL_3D):
-            return None
-        ren = self.p.renderers[i]
-        picker = vtkCellPicker()
-        picker.SetTolerance(0.002)
-        # Only primitives: the translucent medium box in front of them must not catch the ray.
-        picker.PickFromListOn()
-        for name, actor in ren.actors.items():
-            if name.partition("-")[0] in primitives_view.PRIM_ACTORS:
-                picker.AddPickList(actor)
-        if not picker.Pick(display_xy[0], display_xy[1], 0.0, ren):
-            return None
-        target = primitives_view.picked_primitive(ren, picker.GetActor(), picker.GetCellId())
-        if target is None:
-            return None
-        s = self.s
-        s.coverage, s.coverage_pick = True, target
-        update_coverage(s)
-        s.message = f"coverage of {target[0]} primitive {target[2]}"
-        self.redraw()
-        return target
-
-    # ---------------------------------------------------------------- actions
+    # ---------------------------------------------------------------- stages
     def next(self) -> None:
         self.s.stepper.next()
         self.redraw()
@@ -260,6 +225,58 @@ class App:
         self.s.show_help = not self.s.show_help
         self.redraw()
 
+    def _reinspect(self) -> None:
+        reinspect(self.s)
+        accept_results(self.s)  # an inspector in this process has answered already
+
+    def set_pixel(self, pixel_xy) -> None:
+        s = self.s
+        s.pixel_xy = (int(pixel_xy[0]), int(pixel_xy[1]))
+        self._reinspect()
+        s.message = f"picked pixel ({s.pixel_xy[0]}, {s.pixel_xy[1]})"
+        self.redraw()
+
+    def move(self, dx: int, dy: int) -> None:
+        cam = self.s.scene.camera
+        x = min(max(self.s.pixel_xy[0] + dx, 0), cam.width - 1)
+        y = min(max(self.s.pixel_xy[1] + dy, 0), cam.height - 1)
+        self.set_pixel((x, y))
+        self.s.message = ""
+
+    def step_hit(self, d: int) -> None:
+        s = self.s
+        n = len(s.inspection.table) if s.inspection is not None else 0
+        if n:
+            s.hit = (s.hit + d) % n
+        s.coverage_pick = None
+        update_coverage(s)
+        accept_results(s)
+        self.redraw()
+
+    def step_pass(self, d: int) -> None:
+        """Inspect the previous / next pass (of those the image panels include)."""
+        s = self.s
+        k = min(max(s.pass_index + d, 0), max(s.acc.n - 1, 0))
+        if k != s.pass_index:
+            s.pass_index = k
+            self._reinspect()
+        s.message = f"inspecting pass {s.pass_index} of {s.acc.n}"
+        self.redraw()
+
+    def toggle_coverage(self) -> None:
+        s = self.s
+        s.coverage = not s.coverage
+        s.coverage_pick = None
+        update_coverage(s)
+        accept_results(s)
+        s.message = "coverage: the selected hit's primitive" if s.coverage else ""
+        self.redraw()
+
+    def paths(self, factor: float) -> None:
+        self.s.n_paths = int(min(max(round(self.s.n_paths * factor), 1), 512))
+        self.redraw()
+
+    # ---------------------------------------------------------------- rendering
     def toggle_play(self) -> None:
         s = self.s
         s.playing = not s.playing
@@ -277,13 +294,14 @@ class App:
         s = self.s
         if s.prog is not None:
             s.prog.reset(scene=s.scene, estimators=panel_specs(s), settings=s.settings)
-            s.acc = s.prog.runs[0].acc
+            s.acc = s.prog.runs[s.inspected].acc
             s.pass_index = 0
         else:
             s.acc = render(s.scene, s.estimator, s.settings, passes=s.initial_passes,
                            seed=s.seed).accumulator
             s.pass_index = min(s.pass_index, s.acc.n - 1)
-        reinspect(s)
+        s.var_scale.reset()
+        self._reinspect()
         s.message = message
 
     def reset(self) -> None:
@@ -294,6 +312,32 @@ class App:
         s.pass_index = 0
         self.restart("reset")
         self.redraw(keep_camera=False)
+
+    def toggle_scale(self) -> None:
+        """Fix the variance maps' shared colour scale at its current range, or let it follow
+        the maps (auto)."""
+        s = self.s
+        locked = s.var_scale.toggle()
+        s.message = ("variance scale fixed: the maps darken as they converge" if locked
+                     else "variance scale auto: refitted to every frame")
+        self.redraw()
+
+    def next_focus(self) -> None:
+        """Cycle the layouts (split / images large / 3D view large)."""
+        s = self.s
+        s.focus = next_focus(s.focus)
+        s.message = f"layout: {s.focus}"
+        self.redraw()
+
+    def next_mode(self) -> None:
+        """Cycle the image-panel modes (render / techniques / bounces)."""
+        s = self.s
+        if s.prog is None:
+            s.message = "panel modes need the progressive renderer (the window)"
+        else:
+            s.mode = next_mode(s.mode)
+            s.message = f"panels: {s.mode}: {MODE_HELP[s.mode]}"
+        self.redraw()
 
     def save(self) -> None:
         s = self.s
@@ -306,176 +350,23 @@ class App:
         if self.p.iren is not None:
             self.p.iren.interactor.TerminateApp()
 
-    def set_pixel(self, pixel_xy) -> None:
-        s = self.s
-        s.pixel_xy = (int(pixel_xy[0]), int(pixel_xy[1]))
-        reinspect(s)
-        s.message = f"picked pixel ({s.pixel_xy[0]}, {s.pixel_xy[1]})"
-        self.redraw()
-
-    def move(self, dx: int, dy: int) -> None:
-        cam = self.s.scene.camera
-        x = min(max(self.s.pixel_xy[0] + dx, 0), cam.width - 1)
-        y = min(max(self.s.pixel_xy[1] + dy, 0), cam.height - 1)
-        self.set_pixel((x, y))
-        self.s.message = ""
-
-    def step_hit(self, d: int) -> None:
-        s = self.s
-        n = len(s.inspection.table)
-        if n:
-            s.hit = (s.hit + d) % n
-        s.coverage_pick = None
-        update_coverage(s)
-        self.redraw()
-
-    def step_pass(self, d: int) -> None:
-        """Inspect the previous / next pass (of those the image panels include)."""
-        s = self.s
-        k = min(max(s.pass_index + d, 0), max(s.acc.n - 1, 0))
-        if k != s.pass_index:
-            s.pass_index = k
-            reinspect(s)
-        s.message = f"inspecting pass {s.pass_index} of {s.acc.n}"
-        self.redraw()
-
-    def toggle_coverage(self) -> None:
-        s = self.s
-        s.coverage = not s.coverage
-        s.coverage_pick = None
-        update_coverage(s)
-        s.message = "coverage: the selected hit's primitive" if s.coverage else ""
-        self.redraw()
-
-    def paths(self, factor: float) -> None:
-        self.s.n_paths = int(min(max(round(self.s.n_paths * factor), 1), 512))
-        self.redraw()
-
-    def toggle_member_index(self, i: int) -> None:
-        names = self.members
-        if len(names) > 1 and i < len(names):
-            self.toggle_member(names[i])
-
-    def toggle_member(self, name: str) -> None:
-        """Switch an estimator member (MIS technique) on or off; one always stays on."""
-        s = self.s
-        disabled = set(s.disabled) ^ {name}
-        try:
-            est = controls.estimator_with(s.base_spec, s.scene, disabled)
-        except ValueError as e:
-            s.message = str(e)
-            self.redraw()
-            return
-        s.estimator, s.disabled = est, frozenset(disabled)
-        self.restart(f"estimator {est.spec}")
-        self.redraw()
-
-    # ---------------------------------------------------------------- medium and photons
-    def nudge(self, key: str, direction: int) -> None:
-        """A key step of a parameter (x2 photons, x1.25 sigmas, +-0.1 g); applied debounced."""
-        p = self.params
-        if key == "photons":
-            p = replace(p, photons=int(p.photons * (2.0 if direction > 0 else 0.5)))
-        elif key == "g":
-            p = replace(p, g=round(p.g + 0.1 * direction, 2))
-        else:
-            v = getattr(p, key)
-            v = max(v, 0.04) * 1.25 if direction > 0 else v / 1.25
-            p = replace(p, **{key: round(v, 3)})
-        self.set_params(p.clamped())
-
-    def slide(self, key: str, value: float) -> None:
-        """A slider moved (``photons`` comes as log2)."""
-        v = 2.0 ** value if key == "photons" else value
-        self.set_params(replace(self.params, **{key: v}).clamped(), from_slider=True)
-
-    def set_params(self, params, *, from_slider: bool = False) -> None:
-        self.params = params
-        self.pending.push(params, self.clock())
-        if self.controls is not None and not from_slider:
-            for k in ("sigma_s", "sigma_a", "g"):
-                self.controls.set_slider(k, getattr(params, k))
-            self.controls.set_slider("photons", np.log2(params.photons))
-        self.s.message = (f"sigma_s {params.sigma_s:.3g}  sigma_a {params.sigma_a:.3g}  "
-                          f"g {params.g:.2f}  photons {params.photons}  (applying...)")
-        compose_panel(self.p, self.s)
-        self.p.render()
-
-    def apply_params(self, params) -> None:
-        """Build the new scene and settings and restart rendering and inspection."""
-        s = self.s
-        s.scene = controls.scene_with(s.base_scene, params)
-        s.settings = replace(s.settings, photons=int(params.photons))
-        dropped = ""
-        if s.reference is not None and s.scene.medium != s.base_scene.medium:
-            # The reference is the image of the medium as loaded; relMSE against it would
-            # measure the change of medium, not the estimator's error.
-            s.reference = None
-            dropped = "; reference dropped (another medium)"
-        self.restart(f"sigma_s {params.sigma_s:.3g}  sigma_a {params.sigma_a:.3g}  "
-                     f"g {params.g:.2f}  photons {params.photons}: restarted{dropped}")
-        self.redraw()
-
-    def flush(self) -> None:
-        """Apply a pending parameter change now (tests; the timer waits for quiet)."""
-        if self.pending.pending:
-            self.apply_params(self.pending.due(float("inf")))
-
-    def toggle_sliders(self) -> None:
-        """Show / hide the medium and photon sliders (over the lower left of the 3D view)."""
-        if self.controls is not None:
-            self.controls.show_sliders(not self.controls.sliders_on)
-            self.s.message = ("sliders: changes apply when the slider rests"
-                              if self.controls.sliders_on else "")
-        self.redraw()
-
-    def next_mode(self) -> None:
-        """Cycle the image-panel modes (render / techniques / bounces)."""
-        from .image_panels import MODE_HELP, next_mode
-
-        s = self.s
-        if s.prog is None:
-            s.message = "panel modes need the progressive renderer (the window)"
-        else:
-            s.mode = next_mode(s.mode)
-            s.message = f"panels: {s.mode}: {MODE_HELP[s.mode]}"
-        self.redraw()
-
-    def toggle_record(self) -> None:
-        """Start / stop recording the window (a GIF of every new progressive frame, written
-        with :class:`ui.cli.common.Animation`, the atomic writer ``record`` uses)."""
-        s = self.s
-        if self.recorder is None:
-            from ui.cli.common import Animation
-
-            out = os.path.abspath(f"psurf-record-{time.strftime('%Y%m%d-%H%M%S')}.gif")
-            self.recorder = Animation(out, ".gif", fps=5.0)
-            s.message = f"recording {out} (v stops)"
-            self.redraw()
-            self._record_frame()
-        else:
-            rec, self.recorder = self.recorder, None
-            rec.commit()
-            s.message = f"saved {rec.frames} frames to {rec.out}"
-            self.redraw()
-
-    def _record_frame(self) -> None:
-        if self.recorder is not None:
-            self.recorder.add(self.p.screenshot(None, return_img=True))
-
     def close(self) -> None:
-        """Window closed: finish a recording and stop the progressive worker."""
+        """Window closed: finish a recording, stop the background processes."""
         if self.recorder is not None:
             rec, self.recorder = self.recorder, None
             rec.commit()
             print(f"psurf: saved {rec.frames} frames to {rec.out}", flush=True)
         if self.s.prog is not None:
             self.s.prog.close()
+        if self.s.inspector is not None:
+            self.s.inspector.close()
         if self.controls is not None:
             self.controls.close()
 
     # ---------------------------------------------------------------- timer
     def tick(self, _step=None) -> None:
+        """The timer: a resize, a script step, a rested parameter change, the inspector's
+        answers and the render worker's passes (never waits for any of them)."""
         if not self._gl_checked:  # the first tick: the window and its GL context exist now
             self._gl_checked = True
             if software_opengl(self.p):
@@ -484,19 +375,37 @@ class App:
                 # responsive without it. Screenshots keep it: they are figures, not frames.
                 self.p.ren_win.SetMultiSamples(0)
                 self.p.render()
+        if tuple(self.p.window_size) != self._size:  # resized: lay everything out again
+            self._size = tuple(self.p.window_size)
+            self.redraw()
         if self.script:
-            self._script_step(self.script.pop(0))
+            play_step(self, self.script.pop(0))
+            self.scripted = True
+        if self.scripted and self.s.message != self._said:  # a script's log of the status line
+            self._said = self.s.message
+            print(f"window: message: {self._said}", flush=True)
         params = self.pending.due(self.clock())
         if params is not None:
             self.apply_params(params)
             return
         s = self.s
+        if accept_results(s):  # a new inspection (or coverage): the stage is drawn anew
+            self.redraw()
+        elif s.inspector is not None and s.inspector.busy("pixel") is not None:
+            now = time.monotonic()
+            if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
+                self._busy_shown = now
+                self._frame()
         if s.prog is not None:
             # Non-blocking: merges what the worker finished (at most POLL_BUDGET seconds).
-            if s.prog.poll():
-                s.acc = s.prog.runs[0].acc
+            got = s.prog.poll()
+            notes = s.prog.take_notices()
+            if notes:
+                s.message = notes[-1]
+            if got or notes:
+                s.acc = s.prog.runs[s.inspected].acc
                 if s.prog.errors:
-                    s.message = f"render error: {s.prog.errors[0].splitlines()[-1]}"
+                    s.message = f"render error: {s.prog.errors[-1].splitlines()[-1]}"
                 self._frame()
             return
         if not s.playing:
@@ -511,9 +420,13 @@ class App:
         self.p.suppress_rendering = True
         try:
             compose_images(self.p, self.s)
-            compose_panel(self.p, self.s)
+            fits = compose_panel(self.p, self.s)
         finally:
             self.p.suppress_rendering = held
+        if not fits:  # the panel's text needs another layout: everything is laid out again
+            self.redraw()
+            self._record_frame()
+            return
         # Only the image panels and the stage text changed. The 3D view is the costliest part
         # of a frame (tens to hundreds of ms in software OpenGL, measured by
         # benchmarks/ui_frames.py), so it keeps last frame's pixels: VTK renders into its own
@@ -526,42 +439,3 @@ class App:
         finally:
             view3d.SetDraw(True)
         self._record_frame()
-
-    def _script_step(self, step: str) -> None:
-        """One step of :data:`SCRIPT_ENV`, sent through the interactor like a user's."""
-        ii = self.p.iren.interactor
-        if step == "wait":
-            return
-        if step.startswith("passes>="):  # hold the script until the worker sent N passes
-            if self.s.acc.n < int(step[8:]):
-                self.script.insert(0, step)
-            return
-        if step.startswith("passes+"):  # ... until N more passes than now arrived
-            self.script.insert(0, f"passes>={self.s.acc.n + int(step[7:])}")
-            return
-        if step == "quit":
-            print("window: quit", flush=True)
-            self.quit()
-            return
-        if step.startswith("shot:"):
-            self.p.screenshot(step[5:])
-            print(f"window: wrote {step[5:]}", flush=True)
-            return
-        if step.startswith("click:"):
-            _, panel, xy = step.split(":")
-            x, y = (int(v) for v in xy.split(","))
-            dx, dy = (int(round(v)) for v in self.pixel_display(panel, (x, y)))
-            ii.SetEventPosition(dx, dy)
-            ii.MouseMoveEvent()
-            ii.LeftButtonPressEvent()
-            ii.LeftButtonReleaseEvent()
-            print(f"window: clicked {panel} at display ({dx}, {dy}): pixel "
-                  f"{self.s.pixel_xy}", flush=True)
-            return
-        ii.SetKeySym(step)
-        ii.SetKeyCode(step if len(step) == 1 else "\0")
-        ii.KeyPressEvent()
-        ii.KeyReleaseEvent()
-        print(f"window: key {step}: stage {self.s.stage}, pixel {self.s.pixel_xy}, "
-              f"pass {self.s.pass_index}, passes {self.s.acc.n}  "
-              f"[{time.perf_counter() - self._t0:.1f} s]", flush=True)

@@ -60,10 +60,13 @@ def _stepper(state: LectureState) -> LectureStepper:
 
 def build_view(state: LectureState):
     """The :class:`ui.views.window.ViewState` of a lecture state (renders its passes, inspects
-    its pixel in pass 0): what :func:`ui.views.window.build_state` does, plus the scatter window."""
+    its pixel in pass 0): what :func:`ui.views.window.build_state` does, plus the scatter
+    window, the state's pinned variance range and its counter in the title's corner."""
     from psurf_core import RenderSettings, parse_estimator
     from psurf_core.inspect import inspect_pixel
     from psurf_core.render import render
+
+    from .lecture_states import CAPTION_CHARS
 
     scene = load_state_scene(state)
     est = parse_estimator(state.estimator, scene)
@@ -73,7 +76,9 @@ def build_view(state: LectureState):
     view = ViewState(scene_path=str(ROOT / state.scene), scene=scene, estimator=est,
                      seed=int(state.seed), settings=settings, pixel_xy=tuple(state.pixel),
                      acc=res.accumulator, inspection=inspection, stepper=_stepper(state),
-                     initial_passes=max(int(state.passes), 1))
+                     initial_passes=max(int(state.passes), 1), specs=(state.estimator,),
+                     var_clim=state.var_clim, caption_chars=CAPTION_CHARS,
+                     camera_pin=state.camera)
     view.hit = int(state.hit)
     view.n_paths = int(state.n_paths)
     return view
@@ -81,23 +86,24 @@ def build_view(state: LectureState):
 
 def compose_state(plotter, state: LectureState, view, index: int, *,
                   keep_camera: bool = False) -> None:
-    """Draw lecture state ``index`` (the window's panels, the state's camera and counter)."""
+    """Draw lecture state ``index`` (the window's panels, the state's camera (``view.camera_pin``)
+    and counter; a state without a pinned camera has the stage's own view, e.g. Reconstruct's
+    framing of the path)."""
     # Once a window has been shown, pyvista renders after every added actor; one picture is
     # dozens of actors, so render once at the end instead (the caller renders).
     suppressed = plotter.suppress_rendering
     plotter.suppress_rendering = True
     try:
+        view.hint = f"{index + 1}/{len(STATES)}  (tutorial {state.tutorial})  <- ->"
         compose(plotter, view, keep_camera=keep_camera)
         plotter.subplot(0, 0)
-        if not keep_camera:
-            plotter.camera_position = [tuple(map(float, v)) for v in state.camera]
-            plotter.renderer.ResetCameraClippingRange()
-        scene_view.add_text(plotter, f"{index + 1}/{len(STATES)}  (tutorial {state.tutorial})"
-                                     "  <- ->", 0.985, 0.05, scene_view.FONT_SMALL,
-                            name="stage-hint", colour="#555555", align="right")
         if view.show_help:
-            scene_view.add_text(plotter, HELP, 0.04, 0.78, scene_view.FONT, mono=True,
-                                box=True, name="help")
+            x0, y0, x1, y1 = plotter.renderer.GetViewport()
+            box = (0.9 * (x1 - x0) * plotter.window_size[0],
+                   0.9 * (y1 - y0) * plotter.window_size[1])
+            size = scene_view.fit_font(HELP, scene_view.pt(scene_view.FONT), box, mono=True)
+            scene_view.add_text(plotter, HELP, 0.04, 0.95, scene_view.FONT, mono=True,
+                                box=True, name="help", size_px=size)
     finally:
         plotter.suppress_rendering = suppressed
 

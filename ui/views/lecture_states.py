@@ -44,14 +44,18 @@ class LectureState:
         Picked pixel ``(X, Y)``: column from the left, row from the top.
     scatter : (int, int) or None
         ``(min_scatter, max_scatter)`` replacing the scene's ``[render]`` window.
-    camera : ((3,), (3,), (3,))
-        Position, focal point and view-up of the 3D view.
+    camera : ((3,), (3,), (3,)) or None
+        Position, focal point and view-up of the 3D view; None: the stage's own view
+        (Reconstruct frames the path of the hit it shows).
     photons, passes : int
         Per-pass photons and the passes rendered for the image panels (pass 0 is inspected).
     hit : int
         Reconstruct: the hit shown, numbered as in the evaluate table.
     n_paths : int
         Photon subpaths drawn in Trace and Create.
+    var_clim : (float, float) or None
+        The variance panel's colour range; states that compare estimators pin the same one
+        (None: the map's own range).
     """
 
     tutorial: int
@@ -63,14 +67,18 @@ class LectureState:
     seed: int = 0
     pixel: tuple = (32, 24)
     scatter: tuple | None = None
-    camera: tuple = OVERVIEW
+    camera: tuple | None = OVERVIEW
     photons: int = 500
     passes: int = 3
     hit: int = 0
     n_paths: int = 24
+    var_clim: tuple | None = None
 
 
 _MULTI = "mis:plane-t1t2+sphere+cone+cylinder"
+#: The variance range shared by the equal-photons pair (planes vs paper-multi, states 16-17):
+#: one colour scale, so the two maps compare by colour.
+_EQUAL_PHOTONS_CLIM = (1e-11, 1e-3)
 
 #: The lecture, in order (the talk's storyline, tutorial by tutorial).
 STATES: tuple[LectureState, ...] = (
@@ -102,7 +110,7 @@ STATES: tuple[LectureState, ...] = (
     LectureState(
         2, "Photon planes: no blur, unbiased",
         "Integrating the last two distances t1, t2 sweeps a plane: the camera ray meets it "
-        "exactly, no kernel needed. Arrows: psi (black) and the scaled normal n (red).",
+        "exactly, no kernel needed. Arrows: psi (grey) and the scaled normal n (black).",
         "scenes/area.toml", "planes", "intersect", seed=3, pixel=(32, 16), scatter=(2, 2),
         photons=1000, passes=4, camera=BOX),
     LectureState(
@@ -167,19 +175,20 @@ STATES: tuple[LectureState, ...] = (
         "evaluates its Q on it; the sphere and the cylinder found the same path (#15, #17): "
         "same Q's, same weights.",
         "scenes/area.toml", _MULTI, "reconstruct", seed=7, pixel=(32, 16), scatter=(2, 2),
-        photons=200, passes=2, camera=BOX, hit=16),
+        photons=200, passes=2, camera=None, hit=16),
     LectureState(
         7, "Equal photons: the baseline (photon planes)",
-        "Photon planes, 300 photons per pass: note the variance panel's range (per pass, "
-        "log scale). Next: the paper's MIS with the same photons.",
+        "Photon planes, 300 photons per pass: the variance panel (per pass, log scale) shares "
+        "its colour scale with the next state's. Next: the paper's MIS with the same photons.",
         "scenes/area.toml", "planes", "evaluate", seed=8, pixel=(32, 16), scatter=(2, 2),
-        photons=300, passes=2, camera=BOX),
+        photons=300, passes=2, camera=BOX, var_clim=_EQUAL_PHOTONS_CLIM),
     LectureState(
         7, "Equal photons: ours (MIS of planes, cone, cylinder)",
-        "Same photons: about 0.1x the variance per photon (tutorial 7). At equal time "
-        "psurf's numpy MIS loses: each photon costs ~25x more (the paper's C++: 0.229x).",
+        "Same photons, same colour scale: far less variance per photon. Whether that wins at "
+        "equal time depends on what a photon costs; tutorial 7 and the window's equal-time "
+        "panels measure both on this machine.",
         "scenes/area.toml", "paper-multi", "evaluate", seed=8, pixel=(32, 16), scatter=(2, 2),
-        photons=300, passes=2, camera=BOX),
+        photons=300, passes=2, camera=BOX, var_clim=_EQUAL_PHOTONS_CLIM),
     LectureState(
         8, "Long surfaces: expected-value transmittance",
         "A long cone lets t1 run to the box wall and multiplies by exp(-st t1) exactly.",
@@ -192,6 +201,10 @@ STATES: tuple[LectureState, ...] = (
         "scenes/area.toml", "cone-short", "create", seed=9, pixel=(32, 16), scatter=(2, 2),
         photons=500, passes=3, camera=BOX, n_paths=5),
 )
+
+
+#: The longest caption: the window's title block makes room for it (no state is cut).
+CAPTION_CHARS = max(len(s.caption) for s in STATES)
 
 
 def check_index(index: int) -> int:

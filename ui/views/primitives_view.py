@@ -1,11 +1,12 @@
 """Trace and Create in 3D: photon subpaths and the primitives swept from them (pyvista).
 
 Subpaths are polylines clipped to the medium box (``PhotonPaths.clip``), one colour per scatter
-event. Primitives are drawn as geometry clipped to the box, one colour per family
-(:data:`ui.views.scene_view.FAMILY_COLOURS`): points as spheres of the kernel radius, beams as
-tubes, planes and light copies as polygons, and spheres, cones, cylinders, disks and surfaces of
-revolution as parametric surfaces. A family the drawer does not know (or whose data layout
-changed) falls back to its primitives' bounding boxes, and the legend says so.
+event. Primitives are drawn as geometry clipped to the box, each technique in its own colour
+(:func:`ui.views.palette.technique_colour`, the same in every view): points as spheres of
+the kernel radius, beams as tubes, planes and light copies as polygons, and spheres, cones,
+cylinders, disks and surfaces of revolution as parametric surfaces. A family the drawer does
+not know (or whose data layout changed) falls back to its primitives' bounding boxes, and the
+legend says so.
 """
 
 from __future__ import annotations
@@ -15,12 +16,12 @@ import numpy as np
 from psurf_core.techniques.base import fields_of
 
 from ._vtk import pv
+from .palette import technique_colour, text_on
 from .scene_view import (
     FONT,
     FONT_SMALL,
     LINE,
     add_text,
-    family_colour,
     medium_bounds,
     pt,
     px,
@@ -29,7 +30,9 @@ from .scene_view import (
 
 #: Cell arrays naming the primitive (row in its batch) and batch a drawn cell belongs to.
 PRIM_ROW, PRIM_BATCH = "prim_row", "prim_batch"
-#: Prefixes of the actor names primitives are drawn under (``<prefix>-<technique>``).
+#: Prefixes of the actor names primitives are drawn under (``<prefix>-<technique>:mesh`` and
+#: ``...:edges``: pyvista's ``add_mesh(name=X)`` removes every actor named ``X-...``, so no
+#: name may be another's prefix followed by ``-``, as ``plane-t1t2`` is ``plane-t1t2-short``'s).
 PRIM_ACTORS = ("prims", "hitprims", "context", "coverage")
 #: Default number of photon subpaths drawn (``+``/``-`` in the window change it).
 DEFAULT_PATHS = 24
@@ -312,8 +315,16 @@ def _bounds_boxes(prims, idx) -> pv.PolyData:
     return out
 
 
+#: Meshes of recently drawn primitives (stepping through the stages draws the same ones again;
+#: building and clipping them is most of a stage's drawing time). Keyed by the primitives'
+#: identity, which each entry keeps alive so the key stays valid.
+_MESHES: dict = {}
+MESH_CACHE = 48
+
+
 def primitive_mesh(tech, prims, idx, scene, radius: float):
-    """Geometry of primitives ``idx`` of ``tech``, clipped to the medium box.
+    """Geometry of primitives ``idx`` of ``tech``, clipped to the medium box (a copy the caller
+    may add arrays to; recently built ones are reused).
 
     Returns
     -------
@@ -324,6 +335,18 @@ def primitive_mesh(tech, prims, idx, scene, radius: float):
     idx = np.asarray(idx, dtype=np.int64)
     if idx.size == 0:
         return pv.PolyData(), "surface"
+    key = (id(prims), id(scene), tech.name, float(radius), idx.tobytes())
+    hit = _MESHES.get(key)
+    if hit is None:
+        mesh, how = _primitive_mesh(tech, prims, idx, scene, radius)
+        if len(_MESHES) >= MESH_CACHE:
+            _MESHES.pop(next(iter(_MESHES)))
+        _MESHES[key] = hit = (mesh, how, prims, scene)
+    mesh, how = hit[0], hit[1]
+    return mesh.copy(deep=False), how
+
+
+def _primitive_mesh(tech, prims, idx: np.ndarray, scene, radius: float):
     try:
         mesh = _draw_family(tech, prims, idx, scene, radius)
     except (KeyError, IndexError, ValueError):
@@ -379,7 +402,7 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
             count += len(rows)
             if mesh.n_points:
                 meshes.append(mesh)
-        col = family_colour(tech.family)
+        col = technique_colour(tname)
         if count == 0:
             status[tname] = "none"
             if list_empty:
@@ -389,10 +412,11 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
                                                      if meshes else pv.PolyData())
         if merged.n_points:
             if how == "bounds":
-                plotter.add_mesh(merged, color=col, line_width=px(width), name=f"{name}-{tname}")
+                plotter.add_mesh(merged, color=col, line_width=px(width),
+                                 name=f"{name}-{tname}:mesh")
             else:
                 plotter.add_mesh(merged, color=col, opacity=opacity, show_edges=False,
-                                 smooth_shading=False, name=f"{name}-{tname}",
+                                 smooth_shading=False, name=f"{name}-{tname}:mesh",
                                  culling=False)
                 if edges:
                     fe = merged.extract_feature_edges(boundary_edges=True, feature_edges=False,
@@ -400,7 +424,7 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
                                                       non_manifold_edges=False)
                     if fe.n_points:
                         plotter.add_mesh(fe, color=col, line_width=px(width),
-                                         name=f"{name}-{tname}-edges")
+                                         name=f"{name}-{tname}:edges")
         tag = "bounds only (no drawer)" if how == "bounds" else "drawn"
         status[tname] = f"{count} {tag}"
         entries.append([f"{tech.family}: {tname} ({count}{', bounds' if how == 'bounds' else ''})",
@@ -411,83 +435,21 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
 
 
 def add_legend(plotter: pv.Plotter, entries: list, loc: str = "lower right") -> None:
-    """A legend of colour chips (label on its family colour), stacked in a corner.
+    """A legend of colour chips (label on its technique's colour), stacked in a corner of the
+    current renderer, one text line apart whatever the renderer's height.
 
-    ``entries`` is a list of ``[label, colour]``; ``loc`` is ``"lower right"`` (above the
-    stage hint) or ``"upper right"`` (below the caption).
+    ``entries`` is a list of ``[label, colour]``; ``loc`` is ``"lower right"`` or
+    ``"upper right"``.
     """
-    lum = {}
-    for label, col in entries:
-        r, g, b = pv.Color(col).float_rgb
-        lum[label] = 0.2126 * r + 0.7152 * g + 0.0722 * b
-    step = 0.045
+    ren = plotter.renderer
+    vx0, vy0, vx1, vy1 = ren.GetViewport()
+    vh = max((vy1 - vy0) * plotter.window_size[1], 1.0)
+    step = 1.55 * pt(FONT_SMALL) / vh
     n = len(entries)
-    y0 = (0.10 + step * n) if loc == "lower right" else 0.80
+    y0 = (0.02 + step * n) if loc == "lower right" else 0.98
     for i, (label, col) in enumerate(entries):
         add_text(plotter, f" {label} ", 0.985, y0 - i * step, FONT_SMALL, align="right",
-                 colour="black" if lum[label] > 0.45 else "white", background=col,
-                 name=f"legend-{i}")
-
-
-# --------------------------------------------------------------------------- coverage
-COVERAGE_TINT = "#56B4E9"  # Okabe-Ito sky blue: visible on the grey render
-COVERAGE_EDGE = "#0072B2"  # Okabe-Ito blue
-
-
-def coverage_mesh(mask: np.ndarray):
-    """The covered pixels of an ``(H, W)`` bool mask (row 0 at the top) as panel cells
-    (pixel ``(X, Y)`` is the cell ``[X, X+1] x [H-Y-1, H-Y]``, as in ``ui.views.image_panels``), and
-    the outline of the covered region (the cell edges between a covered and an uncovered
-    pixel, or the image border).
-
-    Returns
-    -------
-    cells : pv.UnstructuredGrid (possibly empty)
-    outline : pv.PolyData (possibly empty), segments at ``z = 0.03``
-    """
-    m = np.asarray(mask, dtype=bool)
-    h, w = m.shape
-    if not m.any():
-        return pv.UnstructuredGrid(), pv.PolyData()
-    up = m[::-1]  # VTK rows go up: up[j, i] is the cell [i, i+1] x [j, j+1]
-    grid = pv.ImageData(dimensions=(w + 1, h + 1, 1), origin=(0.0, 0.0, 0.02))
-    cells = grid.extract_cells(np.flatnonzero(up.reshape(-1)))
-    pad = np.pad(up, 1)
-    j, i = np.nonzero(up)
-    segs = []
-    # (neighbour offset, edge start, edge end) for left, right, bottom, top edges
-    for (dj, di), (a, b) in (((0, -1), ((0, 0), (0, 1))), ((0, 1), ((1, 0), (1, 1))),
-                             ((-1, 0), ((0, 0), (1, 0))), ((1, 0), ((0, 1), (1, 1)))):
-        edge = ~pad[j + 1 + dj, i + 1 + di]
-        x, y = i[edge], j[edge]
-        segs.append(np.stack([np.column_stack([x + a[0], y + a[1]]),
-                              np.column_stack([x + b[0], y + b[1]])], axis=1))
-    segs = np.concatenate(segs).astype(float)  # (S, 2, 2)
-    n = segs.shape[0]
-    pts = np.concatenate([segs.reshape(-1, 2), np.full((2 * n, 1), 0.03)], axis=1)
-    lines = np.column_stack([np.full(n, 2), 2 * np.arange(n), 2 * np.arange(n) + 1]).ravel()
-    return cells, pv.PolyData(pts, lines=lines)
-
-
-def add_coverage(plotter: pv.Plotter, mask: np.ndarray, *, origin=(0.0, 0.0),
-                 spacing: float = 1.0) -> int:
-    """Tint the covered pixels on the current image panel and outline the region; returns
-    the number of covered pixels. ``origin``/``spacing`` place the image (its lower-left
-    corner and cell size) when it is a scaled tile."""
-    cells, outline = coverage_mesh(mask)
-    if origin != (0.0, 0.0) or spacing != 1.0:
-        move = (float(origin[0]), float(origin[1]), 0.0)
-        cells = cells.scale((spacing, spacing, 1.0)).translate(move) if cells.n_cells \
-            else cells
-        outline = outline.scale((spacing, spacing, 1.0)).translate(move) \
-            if outline.n_points else outline
-    if cells.n_cells:
-        plotter.add_mesh(cells, color=COVERAGE_TINT, opacity=0.55, lighting=False,
-                         name="coverage-cells", reset_camera=False)
-    if outline.n_points:
-        plotter.add_mesh(outline, color=COVERAGE_EDGE, line_width=px(2.5), lighting=False,
-                         name="coverage-outline", reset_camera=False)
-    return int(np.count_nonzero(mask))
+                 colour=text_on(col), background=col, name=f"legend-{i}")
 
 
 def picked_primitive(renderer, actor, cell_id: int):
@@ -496,9 +458,9 @@ def picked_primitive(renderer, actor, cell_id: int):
     if actor is None or cell_id < 0:
         return None
     name = next((n for n, a in renderer.actors.items() if a is actor), None)
-    if name is None or name.endswith("-edges"):
+    if name is None or not name.endswith(":mesh"):
         return None
-    prefix, _, technique = name.partition("-")
+    prefix, _, technique = name[: -len(":mesh")].partition("-")
     if prefix not in PRIM_ACTORS or not technique:
         return None
     mesh = actor.GetMapper().GetInput()

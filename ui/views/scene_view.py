@@ -1,11 +1,15 @@
 """The scene in 3D: medium box, lights, occluders, the camera and its frustum (pyvista).
 
-Also the shared look of every view: the Okabe-Ito palette (colour-blind safe), one colour per
-primitive family, and projector-sized fonts and lines. Everything here draws what the core's
-:class:`~psurf_core.scene.Scene` holds; nothing is computed that the core does not expose.
+Also the shared look of every view: the palette (:mod:`ui.views.palette`: Okabe-Ito, one
+colour per technique), projector-sized fonts and lines, and text measured in pixels
+(:func:`text_extent`, :func:`fit_font`) so that no text is cut. Everything here draws what
+the core's :class:`~psurf_core.scene.Scene` holds; nothing is computed that the core does not
+expose.
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -15,35 +19,10 @@ from psurf_core.scene import AreaLight, BoxOccluder, MeshLight, PointLight, Scen
 from ._vtk import pv, register_text_backends, vtkTextRenderer
 
 # --------------------------------------------------------------------------- look
-#: Okabe & Ito (2008), "Color Universal Design": distinguishable with every common colour
-#: vision deficiency.
-OKABE_ITO = {
-    "black": "#000000",
-    "orange": "#E69F00",
-    "sky_blue": "#56B4E9",
-    "green": "#009E73",
-    "yellow": "#F0E442",
-    "blue": "#0072B2",
-    "vermillion": "#D55E00",
-    "purple": "#CC79A7",
-    "grey": "#999999",
-}
+from .palette import FALLBACK_COLOUR, OKABE_ITO  # noqa: E402, F401 (the views' palette)
 
-#: One colour per primitive family (``Technique.family``).
-FAMILY_COLOURS = {
-    "planes": OKABE_ITO["blue"],
-    "points": OKABE_ITO["purple"],
-    "beams": OKABE_ITO["green"],
-    "spheres": OKABE_ITO["sky_blue"],
-    "cones": OKABE_ITO["vermillion"],
-    "cylinders": OKABE_ITO["orange"],
-    "disks": OKABE_ITO["yellow"],
-    "revolutions": OKABE_ITO["grey"],
-    "single": OKABE_ITO["black"],
-}
-FALLBACK_COLOUR = OKABE_ITO["grey"]
-
-LIGHT_COLOUR = OKABE_ITO["yellow"]
+#: Lights: a pale warm white with black edges (yellow is the disk techniques' colour).
+LIGHT_COLOUR = "#FFF1BA"
 OCCLUDER_COLOUR = "#3a3a3a"
 MEDIUM_COLOUR = OKABE_ITO["sky_blue"]
 HIGHLIGHT = OKABE_ITO["black"]
@@ -92,14 +71,16 @@ def _rgb(colour) -> tuple:
 
 def add_text(plotter, text: str, x: float, y: float, size: float, *, mono: bool = False,
              name: str | None = None, bold: bool = False, box: bool = False,
-             colour: str = TEXT_COLOUR, align: str = "left", background=None):
+             colour: str = TEXT_COLOUR, align: str = "left", background=None,
+             size_px: int | None = None):
     """Text whose top-left / top-centre / top-right corner (``align``) is at the normalised
     viewport position ``(x, y)``, at ``size`` points (VTK points, i.e. pixels at 72 dpi, at
-    the design height; pyvista's ``add_text`` would double the number it is given)."""
+    the design height; pyvista's ``add_text`` would double the number it is given), or at
+    ``size_px`` pixels exactly (a size already fitted to its box, :func:`fit_font`)."""
     actor = plotter.add_text(text, position=(x, y), viewport=True, font_size=size,
                              color=colour, font="courier" if mono else "arial", name=name)
     prop = actor.GetTextProperty()
-    prop.SetFontSize(pt(size))
+    prop.SetFontSize(int(size_px) if size_px is not None else pt(size))
     prop.SetVerticalJustificationToTop()
     if align == "center":
         prop.SetJustificationToCentered()
@@ -120,9 +101,83 @@ def add_text(plotter, text: str, x: float, y: float, size: float, *, mono: bool 
     return actor
 
 
-def family_colour(family: str) -> str:
-    """The colour of a primitive family (``Technique.family``); grey when it has none."""
-    return FAMILY_COLOURS.get(family, FALLBACK_COLOUR)
+@functools.lru_cache(maxsize=4096)
+def _measure(text: str, size_px: int, mono: bool, bold: bool) -> tuple[int, int]:
+    from ._vtk import vtkTextProperty
+
+    prop = vtkTextProperty()
+    prop.SetFontSize(int(size_px))
+    prop.SetBold(bool(bold))
+    if mono:
+        prop.SetFontFamilyToCourier()
+    else:
+        prop.SetFontFamilyToArial()
+    bb = [0, 0, 0, 0]
+    renderer = vtkTextRenderer.GetInstance()
+    if renderer is None or not text or not renderer.GetBoundingBox(prop, text, bb, 72):
+        lines = text.split("\n") if text else [""]
+        return (int(0.6 * size_px * max(len(s) for s in lines)),
+                int(1.2 * size_px * len(lines)))
+    return bb[1] - bb[0], bb[3] - bb[2]
+
+
+def text_extent(text: str, size_px: int, *, mono: bool = False,
+                bold: bool = False) -> tuple[int, int]:
+    """``(width, height)`` in pixels of ``text`` (one or more lines) at ``size_px`` points,
+    as VTK's FreeType renderer draws it (Arial, or Courier when ``mono``).
+
+    Monospace text is measured from one line of its font (its advance and line height, once
+    per size): the stage panel's text changes every frame, and measuring all of it with
+    FreeType took tens of milliseconds each time.
+    """
+    size_px = int(size_px)
+    if mono:
+        lines = text.split("\n") if text else [""]
+        one_w, one_h = _measure("M" * 40, size_px, True, bool(bold))
+        two_h = _measure("M\nM", size_px, True, bool(bold))[1]
+        step = two_h - one_h
+        return (int(np.ceil(one_w / 40.0 * max(len(s) for s in lines))),
+                one_h + step * (len(lines) - 1))
+    return _measure(text, size_px, False, bool(bold))
+
+
+def fit_font(text: str, size_px: int, box_px: tuple, *, mono: bool = False,
+             bold: bool = False, minimum: int = 7) -> int:
+    """The largest font size ``<= size_px`` at which ``text`` fits ``box_px = (width,
+    height)`` (pixels; ``minimum`` at least)."""
+    lo, hi = int(minimum), int(size_px)
+    if hi <= lo:
+        return max(hi, 1)
+
+    def fits(size: int) -> bool:
+        w, h = text_extent(text, size, mono=mono, bold=bold)
+        return w <= box_px[0] and h <= box_px[1]
+
+    if fits(hi):
+        return hi
+    while hi - lo > 1:  # fits(lo) assumed (the minimum), not fits(hi)
+        mid = (lo + hi) // 2
+        if fits(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def wrap_to(text: str, width_px: float, size_px: int, *, bold: bool = False) -> str:
+    """``text`` wrapped (at spaces) so that every line is at most ``width_px`` wide."""
+    words = text.split()
+    lines, line = [], ""
+    for word in words:
+        trial = f"{line} {word}" if line else word
+        if line and text_extent(trial, size_px, bold=bold)[0] > width_px:
+            lines.append(line)
+            line = word
+        else:
+            line = trial
+    if line:
+        lines.append(line)
+    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------- geometry
@@ -168,28 +223,66 @@ def scale_of(scene: Scene) -> float:
 OVERVIEW_DIRECTION = (0.75, 0.5, -1.0)
 
 
-def overview_camera(scene: Scene, zoom: float = 1.3):
+def overview_camera(scene: Scene, zoom: float = 1.3, aspect: float | None = None):
     """A fixed oblique viewpoint, from behind and beside the scene camera, that frames the
-    camera, its frustum and the medium box (leaving the top of the view for the title).
+    camera, its frustum and the medium box.
 
-    Returns ``(position, focal_point, view_up)`` for ``plotter.camera_position``.
+    With ``aspect`` (the view's width / height) the camera, the box's corners and the
+    picked pixel's side of the frustum are fitted to that view (the window's 3D view, which
+    has its own title cell); without it, the tutorials' framing (a bounding sphere, room left
+    at the top for a title inside the view). Returns ``(position, focal_point, view_up)`` for
+    ``plotter.camera_position``.
     """
     cam = scene.camera
     med = scene.medium
     a, b, c = OVERVIEW_DIRECTION
     side = cam.right * a + cam.image_up * b + cam.forward * c
     side = side / np.linalg.norm(side)
-    pts = np.vstack([cam.position, med.bounds_min, med.bounds_max])
     centre = 0.5 * (med.bounds_min + med.bounds_max)
+    view_up = cam.image_up - (cam.image_up @ side) * side
+    view_up = view_up / np.linalg.norm(view_up)
+    if aspect is not None:
+        return _fitted_overview(scene, side, view_up, float(aspect))
+    pts = np.vstack([cam.position, med.bounds_min, med.bounds_max])
     focal = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     focal = 0.8 * focal + 0.2 * centre
     radius = 0.5 * np.linalg.norm(cam.position - centre) + 0.5 * med.diagonal
-    view_up = cam.image_up - (cam.image_up @ side) * side
     # A 30 degree view angle: distance to fit the radius, then shift the focal point down
     # so the scene sits below the title and caption.
     dist = radius / np.tan(np.radians(15.0)) / zoom
-    focal = focal + 0.1 * radius * view_up / np.linalg.norm(view_up)
+    focal = focal + 0.1 * radius * view_up
     return [tuple(focal + dist * side), tuple(focal), tuple(view_up)]
+
+
+#: Room around the fitted overview (fraction of the view's half width / height), and the
+#: fraction of its height kept free at the bottom (the colour bar, the legend).
+OVERVIEW_MARGIN, OVERVIEW_BOTTOM = 0.06, 0.14
+
+
+def _fitted_overview(scene: Scene, side, up, aspect: float):
+    """The overview along ``side`` whose 30 degree view just holds the scene camera and the
+    box's eight corners in a view ``aspect`` wide per unit of height, above the bottom band
+    that legends and colour bars use."""
+    med = scene.medium
+    lo, hi = med.bounds_min, med.bounds_max
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    pts = np.vstack([scene.camera.position, corners])
+    right = np.cross(up, side)
+    # centre the points across the view, then back off until every one is inside
+    x, y = pts @ right, pts @ up
+    mid = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    focal = ((mid @ side) * side + 0.5 * (x.min() + x.max()) * right
+             + 0.5 * (y.min() + y.max()) * up)
+    q = pts - focal
+    t = np.tan(np.radians(15.0))
+    # normalized screen heights run from -1 to 1: the band [-1, -1 + 2 b] stays free
+    b, m = OVERVIEW_BOTTOM, OVERVIEW_MARGIN
+    tv = t * (1.0 - b - m)
+    th = t * aspect * (1.0 - m)
+    dist = float(np.max(q @ side + np.maximum(np.abs(q @ right) / th, np.abs(q @ up) / tv)))
+    focal = focal - b * t * dist * up  # the scene sits b higher, above the band
+    return [tuple(focal + dist * side), tuple(focal), tuple(up)]
 
 
 def frustum_lines(scene: Scene, pixel_xy=None):
@@ -252,7 +345,7 @@ def add_scene(plotter: pv.Plotter, scene: Scene, *, pixel_xy=None, box_opacity=0
             c = lt.corner + 0.5 * (lt.edge_u + lt.edge_v)
             arrow = pv.Arrow(start=c, direction=lt.normal, scale=6 * sc, tip_length=0.3,
                              tip_radius=0.12, shaft_radius=0.04)
-            plotter.add_mesh(arrow, color=OKABE_ITO["orange"], name=f"light{i}-normal")
+            plotter.add_mesh(arrow, color="#333333", name=f"light{i}-normal")
             label_pts.append(c - lt.normal * 2.5 * sc)
         elif isinstance(lt, MeshLight):
             plotter.add_mesh(triangles_mesh(lt.triangles), color=LIGHT_COLOUR,

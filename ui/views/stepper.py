@@ -36,7 +36,7 @@ CAPTIONS = {
                "a swept primitive (a plane, sphere, cone, ...), one per scatter count K."),
     "intersect": ("The camera ray through the picked pixel is intersected with every "
                   "primitive: each root is a full light path ending on the ray at distance s. "
-                  "Arrows: the ray direction psi (black) and the scaled normal n (red)."),
+                  "Arrows: the ray direction psi (grey) and the scaled normal n (black)."),
     "evaluate": ("Each hit contributes f / (q |n.psi|); grazing hits (small |n.psi|) are "
                  "large. The contributions of all hits sum exactly to the pixel's value in "
                  "this pass."),

@@ -25,6 +25,7 @@ import numpy as np
 
 from psurf_core.estimators import parse_estimator
 from psurf_core.inspect import reconstruct_hit
+from psurf_core.scene_io import load_scene
 from ui.views import controls, hits_view, image_panels, scene_view, window
 from ui.views.stepper import DEFAULT_PHOTONS, STAGES
 
@@ -54,8 +55,9 @@ class WebSession:
                  photons: int = DEFAULT_PHOTONS, workers: int = 1, label: str | None = None,
                  max_passes: int | None = None):
         specs = list(specs)
-        st = window.build_state(scene_path, specs[0], seed, None, photons, render_passes=False)
-        st.extra_specs = tuple(specs[1:])
+        # The page inspects its first estimator (the window: the first MIS set by default).
+        st = window.build_state(scene_path, specs[0], seed, None, photons, render_passes=False,
+                                estimators=specs, inspect=0)
         window.attach_progressive(st, workers=workers)
         _lowest_priority(st.prog)
         if max_passes is not None:  # a fixed number of passes (tests: the same pictures)
@@ -129,15 +131,17 @@ class WebSession:
                            min(max(int(xy[1]), 0), cam.height - 1))
 
     def inspect(self) -> None:
-        """Inspect the picked pixel in the inspected pass again (core work: any thread)."""
+        """Inspect the picked pixel in the inspected pass again (core work: any thread; the
+        session's inspector computes in this process, so the answer is there on return)."""
         window.reinspect(self.s)
+        window.accept_results(self.s)
 
     # ------------------------------------------------------------------ estimator, scene
     def _restart(self) -> None:
         """The panels' render starts over for the current scene, estimators and settings."""
         s = self.s
         s.prog.reset(scene=s.scene, estimators=window.panel_specs(s), settings=s.settings)
-        s.acc = s.prog.runs[0].acc
+        s.acc = s.prog.runs[s.inspected].acc
         s.pass_index = 0
 
     def toggle_member(self, name: str) -> None:
@@ -145,7 +149,7 @@ class WebSession:
         s = self.s
         disabled = set(s.disabled) ^ {str(name)}
         s.estimator = controls.estimator_with(s.base_spec, s.scene, disabled)
-        s.disabled = frozenset(disabled)
+        s.disabled_by = {**s.disabled_by, s.inspected: frozenset(disabled)}
         self._restart()
 
     def set_estimators(self, text: str) -> None:
@@ -153,7 +157,7 @@ class WebSession:
         s = self.s
         specs = parse_specs(text, s.scene)
         s.estimator = parse_estimator(specs[0], s.scene)
-        s.base_spec, s.disabled, s.extra_specs = specs[0], frozenset(), tuple(specs[1:])
+        s.specs, s.inspected, s.disabled_by = tuple(specs), 0, {}
         self._restart()
 
     def set_params(self, params: controls.MediumParams) -> None:
@@ -170,10 +174,15 @@ class WebSession:
         else the scene's first photon estimator of the defaults is used (``SceneError`` /
         ``ValueError`` leave the session as it was)."""
         old = self.s
+        parse_specs(",".join(old.specs), load_scene(path))  # one line naming the bad one
         st = window.build_state(path, old.base_spec, old.seed, None, old.settings.photons,
-                                render_passes=False)
-        parse_specs(",".join(window.panel_specs(old)), st.scene)
-        st.extra_specs, st.mode, st.stepper = old.extra_specs, old.mode, old.stepper
+                                render_passes=False, estimators=old.specs, inspect=old.inspected)
+        if old.disabled_by:  # members switched off stay off: inspect that estimator
+            st.disabled_by = dict(old.disabled_by)
+            st.estimator = window.panel_estimator(st, st.inspected)
+            window.reinspect(st)
+            window.accept_results(st)
+        st.mode, st.stepper = old.mode, old.stepper
         st.prog, st.panels, st.playing = old.prog, old.panels, old.playing
         self.s, self.label = st, label
         self.params = controls.MediumParams.of(st.scene, old.settings.photons)
@@ -194,7 +203,7 @@ class WebSession:
         s = self.s
         got = s.prog.poll()
         if got:
-            s.acc = s.prog.runs[0].acc
+            s.acc = s.prog.runs[s.inspected].acc
         return got
 
     @property
@@ -259,7 +268,7 @@ class WebSession:
         from ui.cli.render import initial_radius, npz_payload
 
         s = self.s
-        run = s.prog.runs[0]
+        run = s.prog.runs[s.inspected]
         res = SimpleNamespace(mean=run.acc.mean, var=run.acc.variance if run.acc.n > 1
                               else np.zeros_like(run.acc.mean), passes=run.acc.n,
                               photons_per_pass=s.settings.photons, spp=s.settings.spp,

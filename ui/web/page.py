@@ -140,7 +140,7 @@ class Page:
         m = self.m
         if m.s.playing and not self.idle_paused and (
                 time.monotonic() - self.last_input > IDLE_PAUSE
-                or m.s.prog.runs[0].seconds > self.budget):
+                or m.s.prog.runs[m.s.inspected].seconds > self.budget):
             self.idle_paused = True
             m.play(False)
         self.dirty = self.dirty or bool(m.poll())
@@ -273,7 +273,7 @@ def bind(page: Page) -> None:
     @trigger("play")
     def play():
         if page.idle_paused:  # another budget from here
-            page.budget = m.s.prog.runs[0].seconds + RENDER_BUDGET
+            page.budget = m.s.prog.runs[m.s.inspected].seconds + RENDER_BUDGET
         page.idle_paused = False
         m.play(not m.s.playing)
         st.playing = m.s.playing
@@ -340,5 +340,4 @@ def bind(page: Page) -> None:
 def _sync_params(st, m) -> None:
     q = m.params
     st.update({"sigma_s": q.sigma_s, "sigma_a": q.sigma_a, "g": q.g,
-               "photons_log2": math.log2(q.photons), "estimators_text": ",".join(
-                   [m.s.base_spec, *m.s.extra_specs])})
+               "photons_log2": math.log2(q.photons), "estimators_text": ",".join(m.s.specs)})

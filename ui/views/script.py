@@ -1,0 +1,91 @@
+"""Scripted steps for the window (tests under Xvfb, demos): :data:`SCRIPT_ENV` holds steps
+separated by ``;``, one per timer tick, each sent through the window's own event path like a
+person's (the interactor's key presses and mouse clicks):
+
+* a key sym: ``n``, ``space``, ``Right``, ``e``, ``1`` ...;
+* ``click:render:X,Y`` / ``click:variance:X,Y``: a real mouse click on that image pixel's
+  centre of the inspected estimator's tile; ``click:render:X,Y@I`` on estimator ``I``'s tile;
+* ``size:W,H``: resize the window;
+* ``shot:PATH.png``: save the window;
+* ``passes>=N`` / ``passes+N``: wait until the panels hold N passes / N more;
+* ``inspected``: wait until the stages' inspection has arrived;
+* ``kill-worker``: kill the background render process (SIGKILL; the window must restart it);
+* ``wait`` (one tick) or ``quit``.
+
+Every step prints one ``window: ...`` line (what happened, the stage, pixel, passes), which
+the tests read.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+__all__ = ["SCRIPT_ENV", "SIZE_ENV", "play_step"]
+
+#: Environment variable with a script for the window (see the module docstring).
+SCRIPT_ENV = "PSURF_WINDOW_SCRIPT"
+#: Environment variable ``W,H`` overriding the window size (a quicker scripted test).
+SIZE_ENV = "PSURF_WINDOW_SIZE"
+
+
+def _status(app) -> str:
+    s = app.s
+    return (f"stage {s.stage}, pixel {s.pixel_xy}, pass {s.pass_index}, passes {s.acc.n}, "
+            f"inspecting {s.estimator.spec}  [{time.perf_counter() - app._t0:.1f} s]")
+
+
+def play_step(app, step: str) -> None:
+    """Play one step of the script on the window ``app`` (an ``ui.views.interactive.App``)."""
+    ii = app.p.iren.interactor
+    s = app.s
+    if step == "wait":
+        return
+    if step.startswith("passes>="):  # hold the script until the worker sent N passes
+        if s.acc.n < int(step[8:]):
+            app.script.insert(0, step)
+        return
+    if step.startswith("passes+"):  # ... until N more passes than now arrived
+        app.script.insert(0, f"passes>={s.acc.n + int(step[7:])}")
+        return
+    if step == "inspected":
+        if s.inspection is None:
+            app.script.insert(0, step)
+        return
+    if step == "quit":
+        print("window: quit", flush=True)
+        app.quit()
+        return
+    if step == "kill-worker":
+        pid = s.prog.pids[0]
+        os.kill(pid, signal.SIGKILL)
+        print(f"window: killed render worker {pid} with {s.acc.n} passes merged", flush=True)
+        return
+    if step.startswith("shot:"):
+        app.p.render()
+        app.p.screenshot(step[5:])
+        print(f"window: wrote {step[5:]}", flush=True)
+        return
+    if step.startswith("size:"):
+        w, h = (int(v) for v in step[5:].split(","))
+        app.p.window_size = (w, h)
+        print(f"window: resized to {w}x{h}", flush=True)
+        return
+    if step.startswith("click:"):
+        _, panel, xy = step.split(":")
+        xy, _, tile = xy.partition("@")
+        x, y = (int(v) for v in xy.split(","))
+        pos = app.pixel_display(panel, (x, y), int(tile) if tile else None)
+        dx, dy = (int(round(v)) for v in pos)
+        ii.SetEventPosition(dx, dy)
+        ii.MouseMoveEvent()
+        ii.LeftButtonPressEvent()
+        ii.LeftButtonReleaseEvent()
+        print(f"window: clicked {panel} at display ({dx}, {dy}): {_status(app)}", flush=True)
+        return
+    ii.SetKeySym(step)
+    ii.SetKeyCode(step if len(step) == 1 else "\0")
+    ii.KeyPressEvent()
+    ii.KeyReleaseEvent()
+    print(f"window: key {step}: {_status(app)}; message: {s.message}", flush=True)
