@@ -209,12 +209,12 @@ def _check_memory(args, scene, ests, settings, photons, render_reference: bool) 
 
     from psurf_core.budget import render_need
     from psurf_core.estimators import parse_estimator
-    from psurf_core.pass_size import PROBE_PHOTONS
+    from psurf_core.pass_size import PILOT_PHOTONS
 
     runs = list(ests) + ([parse_estimator("reference", scene)] if render_reference else [])
-    # 'auto' is sized later by a timed pass of PROBE_PHOTONS photons; checked as that pass
+    # 'auto' is sized later by pilot passes (the larger: PILOT_PHOTONS[-1]); checked as that
     # (the images the study keeps, which do not depend on it, are most of the need).
-    sets = ([replace(settings, photons=PROBE_PHOTONS if p == "auto" else int(p))
+    sets = ([replace(settings, photons=PILOT_PHOTONS[-1] if p == "auto" else int(p))
              for p in photons] + [settings] * render_reference)
     # Kept: the reference's mean and variance, each estimator's, and the runs' final images
     # (with their stack for the spread across runs).
