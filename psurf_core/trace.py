@@ -40,9 +40,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import sampling
-from .compiled import ctrl_c_kept
 from .constants import MAX_TRACE_DEPTH, PARALLEL_EPS, ROULETTE_START
 from .geometry import Blockers, blockers_of, inside_box
+from .kernels.jit import ctrl_c_kept
 from .scene import Scene
 from .trace_emit import direction_about, emit
 
