@@ -173,6 +173,9 @@ class Technique:
     max_k: int | None = None
     lights = ("point", "area", "mesh")
     short = False
+    #: Whether the technique sweeps a surface with a scaled normal (:meth:`scaled_normal`);
+    #: False for the kernel estimators, which blur points or beams instead.
+    surface = True
     #: Share of each pass's photons the technique sweeps inside an MIS set (``NAME@0.25``):
     #: the first ``round(share x batch)`` photons of every batch (photons are iid, so any
     #: subset of fixed size is an unbiased sample); the MIS weights use sample counts.
@@ -268,6 +271,23 @@ class Technique:
         if self.compiled is None or self.compiled.density is None:
             raise NotImplementedError(f"{self.name} has no MIS density")
         return self.compiled.density(rec, self.short)
+
+    # ---------------------------------------------------------------- the swept surface
+    def scaled_normal(self, rec) -> np.ndarray:
+        """(H, 3) scaled normal ``n`` of the surface this technique sweeps, at the paths
+        ``rec`` (:class:`~psurf_core.path_record.PathRecord`). Every family with a surface
+        provides it from its module's own ``scaled_normal``; a family without one (the kernel
+        estimators) declares ``surface = False``."""
+        raise NotImplementedError(f"{self.name} declares no scaled normal")
+
+    def hit_normals(self, hits: Hits, prims: Primitives, paths, rays,
+                    ctx: PassContext) -> np.ndarray:
+        """(H, 3) scaled normal ``n`` at each hit: :meth:`scaled_normal` on the path each hit
+        implies (:meth:`reconstruct`); NaN rows where the technique sweeps no surface."""
+        if not self.surface:
+            return np.full((len(hits), 3), np.nan)
+        rec = self.reconstruct(hits, prims, paths, rays, ctx)
+        return np.asarray(self.scaled_normal(rec), dtype=float)
 
 
 # ------------------------------------------------------------------------- shared helpers

@@ -53,6 +53,7 @@ class PhotonBeams(Technique):
     """Photon beams with a 1D kernel; ``short`` limits each beam to its sampled flight."""
 
     family = "beams"
+    surface = False  # a kernel blurs photon beams: no swept surface, no scaled normal
     kernel_dim = 1
     min_k = 1
     default_radius_fraction = 0.01

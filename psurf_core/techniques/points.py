@@ -38,6 +38,7 @@ class _PointKernel(Technique):
     """Shared Create stage of the photon-point baselines (one primitive per valid vertex)."""
 
     family = "points"
+    surface = False  # a kernel blurs photon points: no swept surface, no scaled normal
     min_k = 1
     default_radius_fraction = 0.03
 
