@@ -289,6 +289,24 @@ class Technique:
         rec = self.reconstruct(hits, prims, paths, rays, ctx)
         return np.asarray(self.scaled_normal(rec), dtype=float)
 
+    # ---------------------------------------------------------------- drawing
+    #: The family module's ``surface_grid(G, short, far)`` (``G``: primitives' records), the
+    #: points sweeping each primitive's surface; None where the family declares none.
+    grid = None
+
+    def surface_grid(self, prims: Primitives, idx: np.ndarray, far: float) -> np.ndarray:
+        """(M, nu, nv, 3) points sweeping the surface of primitives ``idx`` (unclipped; a long
+        primitive's unbounded extent stops at ``far``), what the Create view meshes."""
+        if self.grid is None:
+            raise NotImplementedError(f"{self.name} declares no surface grid")
+        return self.grid(prims.data[idx], self.short, far)
+
+    def kernel_extent(self, prims: Primitives, idx: np.ndarray, scene: Scene,
+                      far: float) -> np.ndarray:
+        """What a kernel estimator (``surface = False``) blurs, for drawing: (M, 1, 3) photon
+        points or (K, 2, 3) beam segments inside the medium box."""
+        raise NotImplementedError(f"{self.name} declares no kernel extent")
+
 
 # ------------------------------------------------------------------------- shared helpers
 def fields_of(data) -> dict:

@@ -27,6 +27,7 @@ from ..kernels.shadow import BLOCKED, CLEAR, status
 from ..kernels.vec import add, madd, scale, sub
 from ..path_record import with_t2, with_w1
 from ..records import Vec, table
+from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
@@ -191,6 +192,20 @@ def _density(rec, short):
     return q * rec.pdf.e2 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 36, 3) the cylinder of radius ``T1 s1`` about ``x2 + h w2``, from
+    ``h = T1 c1`` over ``T2`` (short) or ``far``: the drawing's sweep grid (:mod:`.grids`)."""
+    m = len(G)
+    e1, e2 = grids.frame(G.w2)
+    around = (G.T1 * G.s1)[:, None, None] * grids.ring(e1, e2, 36)
+    start = G.x2 + (G.T1 * G.c1)[:, None] * G.w2
+    h = grids.lengths(G.T2 if short else None, m, far)
+    t = np.stack([np.zeros(m), h], axis=1)
+    return (start[:, None, None, :] + t[:, :, None, None] * G.w2[:, None, None, :]
+            + around[:, None, :, :])
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonCylinder(Technique):
     """The photon cylinder; ``short`` restricts ``t2* < T2`` (track-length)."""
@@ -199,6 +214,8 @@ class PhotonCylinder(Technique):
     min_k = 2
     compiled = Compiled(CylinderGeometry, CylinderHit, 2, roots, accept, visibility,
                         contribution, segments, reconstruct, density)
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool):
         self.short = short

@@ -26,6 +26,7 @@ from ..kernels.vec import madd, scale, sub
 from ..path_record import with_t1, with_w1
 from ..records import Vec, table
 from ..sampling import phase_value
+from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
@@ -173,6 +174,15 @@ def _density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, nth, 3) the half-disk from ``x1`` between ``w2`` and ``-w2`` through ``e_r``,
+    out to ``T1`` (short) or ``far``: the drawing's sweep grid (:mod:`.grids`)."""
+    m = len(G)
+    return grids.half_disk(G.x1, G.w2, G.e_r, grids.lengths(G.T1 if short else None, m, far),
+                           np.full(m, np.pi))
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonDisk(Technique):
     """The photon disk; ``short`` restricts ``t1* < T1`` (track-length)."""
@@ -181,6 +191,8 @@ class PhotonDisk(Technique):
     min_k = 2
     compiled = Compiled(DiskGeometry, DiskHit, 1, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool):
         self.short = short

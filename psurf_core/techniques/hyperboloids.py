@@ -30,6 +30,7 @@ from ..kernels.jit import twin
 from ..kernels.vec import madd, scale, sub
 from ..path_record import revolution_axis
 from ..records import Vec, table
+from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot
 from .revolutions import RevolutionHit, reconstruct, revolved, segments, visibility
 from .surface_common import (
@@ -196,6 +197,16 @@ def _density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 36, 3) the generator ``x2 + T2 w2 + t w1``, ``t <= T1`` (short) or ``far``,
+    revolved about ``(x2, A3)``: the drawing's sweep grid (:mod:`.grids`)."""
+    t1 = grids.lengths(G.T1 if short else None, len(G), far)
+    v0 = G.T2[:, None] * G.w2
+    v1 = v0 + t1[:, None] * G.w1
+    return grids.revolve(G.x2, G.A3, np.stack([v0, v1], axis=1))
+
+
 # ------------------------------------------------------------------------- Create
 class Hyperboloid(Technique):
     """The hyperboloid ``[t1, ph2]``; ``short`` restricts ``t1* < T1``."""
@@ -204,6 +215,8 @@ class Hyperboloid(Technique):
     min_k = 2
     compiled = Compiled(HyperboloidGeometry, RevolutionHit, 2, roots, accept, visibility,
                         contribution, segments, reconstruct, density)
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool):
         self.short = short

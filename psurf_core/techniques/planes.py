@@ -34,6 +34,7 @@ from ..kernels.shadow import BLOCKED, CLEAR, status
 from ..kernels.vec import madd, sub
 from ..path_record import with_t1, with_t2
 from ..records import Vec, table
+from . import grids
 from .base import (
     Compiled,
     Primitives,
@@ -204,6 +205,15 @@ def _density(rec, short):
     return q * rec.pdf.e1 * rec.pdf.e2 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 2, 3) each plane's corners ``x2 + a w2 + b w1``, ``a <= T2``, ``b <= T1``
+    (short; long: out to ``far``): the drawing's sweep grid (:mod:`.grids`)."""
+    m = len(G)
+    return grids.parallelograms(G.x2, G.w2, G.w1, grids.lengths(G.T2 if short else None, m, far),
+                                grids.lengths(G.T1 if short else None, m, far))
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonPlane(Technique):
     """The photon plane ``[t1, t2]``; ``short`` selects the Tungsten (track-length) variant."""
@@ -212,6 +222,8 @@ class PhotonPlane(Technique):
     min_k = 2
     compiled = Compiled(PlaneGeometry, PlaneHit, 1, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool):
         self.short = short

@@ -66,6 +66,10 @@ class _PointKernel(Technique):
         lo, hi = clip_bounds(scene, xp - r, xp + r)
         return Primitives(self.name, photon, K, lo, hi, dict(xp=xp, w=w))
 
+    def kernel_extent(self, prims, idx, scene, far) -> np.ndarray:
+        """(M, 1, 3) the photon points (drawn as balls of the kernel radius)."""
+        return prims.data["xp"][idx][:, None, :]
+
     def _weight(self, hits: Hits, prims: Primitives, paths, rays, ctx) -> np.ndarray:
         """(H, 3) ``beta_j (ss/st) rho(-w_j . psi)``: the photon's weight at the camera vertex."""
         med = ctx.scene.medium

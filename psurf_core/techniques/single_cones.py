@@ -39,6 +39,7 @@ from .cones import (
     reconstruct,
     scaled_normal,
     segments,
+    surface_grid,  # the same nappe: apex x1, axis w2, cos c1
     visibility,
 )
 from .single import SingleScatter, sweep_bounds
@@ -78,6 +79,8 @@ class SingleCone(SingleScatter):
 
     compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool = False):
         self.short = bool(short)

@@ -23,6 +23,7 @@ from ..kernels.vec import madd, scale, sub
 from ..path_record import with_w1
 from ..pdfs import emission_pdf
 from ..records import Vec, table
+from . import grids
 from .base import Compiled, Primitives, dot
 from .cones import segments, visibility  # the path's one segment x1 -> x0
 from .single import SingleScatter, columns, sweep_bounds
@@ -126,12 +127,22 @@ def _density(rec, short):
     return rec.pdf.uv * rec.pdf.t1 * abs(dot(scaled_normal(rec.w1, rec.t1), rec.psi))
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, nt, nph, 3) the sphere of radius ``T1`` about the light point ``x1`` (the front
+    hemisphere about ``axis`` for an area / mesh light): the drawing's sweep grid."""
+    one = G.one_sided.astype(bool)
+    return grids.sphere(G.x1, G.T1, G.axis, np.where(one, 0.5 * np.pi, np.pi))
+
+
 # ------------------------------------------------------------------------- Create
 class SingleSphere(SingleScatter):
     """``ss-sphere`` ``[cos th, ph]``: sphere (area/mesh: front hemisphere) of radius ``T``."""
 
     compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool = False):
         if short:

@@ -25,6 +25,7 @@ from ..kernels.vec import madd, scale, sub
 from ..path_record import with_w1
 from ..records import Vec, table
 from ..sampling import phase_value
+from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
@@ -150,6 +151,12 @@ def _density(rec, short):
     return q_to_w2(rec) * rec.pdf.t2 * rec.pdf.t1 * abs(dot(n, rec.psi))
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, nt, nph, 3) the sphere of radius ``T1`` about ``x1``: the drawing's sweep grid."""
+    return grids.sphere(G.x1, G.T1)
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonSphere(Technique):
     """The photon sphere (long only)."""
@@ -158,6 +165,8 @@ class PhotonSphere(Technique):
     min_k = 2
     compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool = False):
         if short:
