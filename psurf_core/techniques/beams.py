@@ -41,9 +41,9 @@ from .base import (
     dot,
     in_medium,
     on_ray,
-    ray_bounds,
     segments_clear,
 )
+from .bounds import ray_bounds
 from .points import kernel_radius
 
 #: ``|w x psi|`` below this is treated as parallel (no hit).
@@ -54,14 +54,11 @@ class PhotonBeams(Technique):
     """Photon beams with a 1D kernel; ``short`` limits each beam to its sampled flight."""
 
     family = "beams"
+    names = ("beams-long", "beams")
     surface = False  # a kernel blurs photon beams: no swept surface, no scaled normal
     kernel_dim = 1
     min_k = 1
     default_radius_fraction = 0.01
-
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "beams" if short else "beams-long"
 
     # ------------------------------------------------------------------ Create
     def create(self, paths, ctx: PassContext) -> Primitives:

@@ -189,11 +189,8 @@ class PhotonCone(Technique):
     compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
+    names = ("cone", "cone-short")
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "cone-short" if short else "cone"
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)

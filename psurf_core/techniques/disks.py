@@ -21,13 +21,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels.jit import twin
-from ..kernels.shadow import CLEAR, status
 from ..kernels.vec import madd, scale, sub
-from ..path_record import with_t1, with_w1
 from ..records import Vec, table
 from ..sampling import phase_value
 from . import grids
-from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
+from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot
+from .cones import reconstruct, segments, visibility  # the path x1 + t1 w1, its segment x1 -> x0
 from .surface_common import (
     NDP_MIN,
     SIN_MIN,
@@ -115,21 +114,6 @@ def _accept(G, o, psi, s, short):
 
 
 # ------------------------------------------------------------------------- Evaluate
-def segments(G, x0, hit):
-    """The reconstructed path's one segment to test: ``x1 -> x0``."""
-    return [(G.x1, x0)]
-
-
-def visibility(G, x0, hit, medium, blockers):
-    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box)."""
-    return segments_clear(blockers, (G.x1, x0))
-
-
-@twin(visibility)
-def _visibility(G, x0, hit, medium, blockers):
-    return status(G.x1, x0, blockers), CLEAR, CLEAR
-
-
 def contribution(G, psi, s, s_min, hit, short, medium):
     """``2pi rho(c1*) [E(t1*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight
     (``rho / p(ph1)``; ``p(c1)`` is not in ``q``)."""
@@ -148,16 +132,6 @@ def _contribution(G, psi, s, s_min, hit, short, medium):
 
 
 # ------------------------------------------------------------------------- MIS
-def reconstruct(rec, G, hit):
-    """The hit's full path: the photon's record with ``t1*`` and ``w1*``."""
-    return rec.with_(t1=hit.t1, w1=hit.w1)
-
-
-@twin(reconstruct)
-def _reconstruct(rec, G, hit):
-    return with_w1(with_t1(rec, hit.t1), hit.w1)
-
-
 def density(rec, short):
     """Relative ``Q = q_{<=w2} p(t2) (1/2pi) t1 |(w1 x w2) . psi| / s1^2`` (short:
     ``* E(t1)``)."""
@@ -192,11 +166,8 @@ class PhotonDisk(Technique):
     compiled = Compiled(DiskGeometry, DiskHit, 1, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
+    names = ("disk", "disk-short")
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "disk-short" if short else "disk"
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)

@@ -44,10 +44,9 @@ from .base import (
     clip_bounds,
     cross,
     dot,
-    ray_bounds,
     segments_clear,
-    wedge_hull,
 )
+from .bounds import ray_bounds, wedge_hull
 from .surface_common import (
     NDP_MIN,
     beta1,

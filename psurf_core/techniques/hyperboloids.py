@@ -32,11 +32,11 @@ from ..path_record import revolution_axis
 from ..records import Vec, table
 from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot
+from .cones import contribution  # the same X: (1/2pi) [E(t1*)] ss rho0 E(s*) / |n . psi|
 from .revolutions import RevolutionHit, reconstruct, revolved, segments, visibility
 from .surface_common import (
     NDP_MIN,
     beta1,
-    camera_term,
     gather,
     q_to_w2,
     quadratic_roots,
@@ -168,18 +168,8 @@ def _accept(G, o, psi, s, short):
 
 
 # ------------------------------------------------------------------------- Evaluate
-def contribution(G, psi, s, s_min, hit, short, medium):
-    """``(1/2pi) [E(t1*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight."""
-    extra = 0.0 if short else hit.t1
-    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
-        hit.n_dot_psi
-
-
-@twin(contribution)
-def _contribution(G, psi, s, s_min, hit, short, medium):
-    extra = 0.0 if short else hit.t1
-    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
-        hit.n_dot_psi
+# segments and visibility: the surfaces of revolution's (.revolutions); contribution: the
+# cone's (.cones), the same X.
 
 
 # ------------------------------------------------------------------------- MIS
@@ -216,11 +206,8 @@ class Hyperboloid(Technique):
     compiled = Compiled(HyperboloidGeometry, RevolutionHit, 2, roots, accept, visibility,
                         contribution, segments, reconstruct, density)
 
+    names = ("hyperboloid", "hyperboloid-short")
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "hyperboloid-short" if short else "hyperboloid"
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=2)

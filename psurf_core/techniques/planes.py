@@ -42,10 +42,9 @@ from .base import (
     clip_bounds,
     cross,
     dot,
-    ray_bounds,
     segments_clear,
-    wedge_hull,
 )
+from .bounds import ray_bounds, wedge_hull
 from .surface_common import (
     beta1,
     camera_term,
@@ -223,11 +222,8 @@ class PhotonPlane(Technique):
     compiled = Compiled(PlaneGeometry, PlaneHit, 1, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
+    names = ("plane-t1t2", "plane-t1t2-short")
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "plane-t1t2-short" if short else "plane-t1t2"
 
     def create(self, paths, ctx) -> Primitives:
         scene = ctx.scene

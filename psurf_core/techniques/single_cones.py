@@ -80,11 +80,8 @@ class SingleCone(SingleScatter):
     compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
+    names = ("ss-cone", "ss-cone-short")
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool = False):
-        self.short = bool(short)
-        self.name = "ss-cone-short" if short else "ss-cone"
 
     def create(self, paths, ctx) -> Primitives:
         """One nappe per photon (:class:`~psurf_core.techniques.cones.ConeGeometry`: apex

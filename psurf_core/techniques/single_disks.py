@@ -163,11 +163,8 @@ class SingleDisk(SingleScatter):
     compiled = Compiled(DiskGeometry, DiskHit, 1, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
+    names = ("ss-disk", "ss-disk-short")
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool = False):
-        self.short = bool(short)
-        self.name = "ss-disk-short" if short else "ss-disk"
 
     def create(self, paths, ctx) -> Primitives:
         """One half-plane per photon (:class:`DiskGeometry`)."""

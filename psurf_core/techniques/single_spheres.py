@@ -20,13 +20,13 @@ import numpy as np
 
 from ..kernels.jit import twin
 from ..kernels.vec import madd, scale, sub
-from ..path_record import with_w1
 from ..pdfs import emission_pdf
 from ..records import Vec, table
 from . import grids
 from .base import Compiled, Primitives, dot
 from .cones import segments, visibility  # the path's one segment x1 -> x0
 from .single import SingleScatter, columns, sweep_bounds
+from .spheres import reconstruct  # the photon's record with w1*
 from .surface_common import NDP_MIN, camera_term, quadratic_roots, unit
 
 
@@ -107,16 +107,6 @@ def _contribution(G, psi, s, s_min, hit, short, medium):
 
 
 # ------------------------------------------------------------------------- MIS
-def reconstruct(rec, G, hit):
-    """The hit's full path: the photon's record (``t1 = T``) with ``w1*``."""
-    return rec.with_(w1=hit.w1)
-
-
-@twin(reconstruct)
-def _reconstruct(rec, G, hit):
-    return with_w1(rec, hit.w1)
-
-
 def density(rec, short):
     """``Q = p(u,v) st E(t) t^2 |w . psi|``."""
     return rec.pdf.uv * rec.pdf.t1 * np.abs(dot(scaled_normal(rec.w1, rec.t1), rec.psi))
@@ -142,13 +132,8 @@ class SingleSphere(SingleScatter):
     compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
+    names = ("ss-sphere", None)
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool = False):
-        if short:
-            raise ValueError("ss-sphere has no short variant")
-        self.short = False
-        self.name = "ss-sphere"
 
     def create(self, paths, ctx) -> Primitives:
         """One sphere per photon (:class:`SphereGeometry`)."""

@@ -20,13 +20,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels.jit import twin
-from ..kernels.shadow import CLEAR, status
 from ..kernels.vec import madd, scale, sub
 from ..path_record import with_w1
 from ..records import Vec, table
 from ..sampling import phase_value
 from . import grids
-from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
+from .base import Compiled, Primitives, Technique, clip_bounds, dot
+from .cones import segments, visibility  # the path's one segment x1 -> x0
 from .surface_common import (
     NDP_MIN,
     beta1,
@@ -98,21 +98,6 @@ def _accept(G, o, psi, s, short):
 
 
 # ------------------------------------------------------------------------- Evaluate
-def segments(G, x0, hit):
-    """The reconstructed path's one segment to test: ``x1 -> x0``."""
-    return [(G.x1, x0)]
-
-
-def visibility(G, x0, hit, medium, blockers):
-    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box)."""
-    return segments_clear(blockers, (G.x1, x0))
-
-
-@twin(visibility)
-def _visibility(G, x0, hit, medium, blockers):
-    return status(G.x1, x0, blockers), CLEAR, CLEAR
-
-
 def contribution(G, psi, s, s_min, hit, short, medium):
     """``[rho(w2 . w1*) E(T1) / p(T1) = rho / st] ss rho0 E(s* - s_min) / |n . psi|`` per
     unit photon weight."""
@@ -166,13 +151,8 @@ class PhotonSphere(Technique):
     compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
+    names = ("sphere", None)
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool = False):
-        if short:
-            raise ValueError("the photon sphere has no short variant")
-        self.short = False
-        self.name = "sphere"
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)

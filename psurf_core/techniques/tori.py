@@ -235,13 +235,8 @@ class Torus(Technique):
     compiled = Compiled(TorusGeometry, RevolutionHit, 4, roots, accept, visibility,
                         contribution, segments, reconstruct, density)
 
+    names = ("torus", None)
     grid = staticmethod(surface_grid)
-
-    def __init__(self, short: bool = False):
-        if short:
-            raise ValueError("the torus has no short variant")
-        self.short = False
-        self.name = "torus"
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=2)
