@@ -319,7 +319,7 @@ ins_m = inspect_pixel(mesh_scene, "ss-plane-uv", 0, 0, (32, 14),
 paths = ins_m.paths[b]
 d = prims.data
 tri = light.triangles[paths.tri[prims.photon]]  # (M, 3, 3) each photon's emitting triangle
-shift = d["T"][:, None] * d["w"]  # T w
+shift = d["T1"][:, None] * d["w"]  # T w (the photon's flight: T1)
 copies = np.stack([d["org"], d["org"] + d["A"], d["org"] + d["B"]], axis=1)  # drawn corners
 
 p = pv.Plotter(off_screen=True, window_size=(2000, 900), shape=(1, 2), border=True,
@@ -329,7 +329,7 @@ blob = scene_view.triangles_mesh(light.triangles)
 centre = light.triangles.reshape(-1, 3).mean(axis=0)
 # A photon worth drawing: it left a triangle facing us and flew a visible distance sideways.
 facing = light.normals[paths.tri[prims.photon]] @ VIEW
-one = int(np.argmax((d["T"] > 0.3) * (d["T"] < 0.7) * facing * (1.0 - np.abs(d["w"] @ VIEW))))
+one = int(np.argmax((d["T1"] > 0.3) * (d["T1"] < 0.7) * facing * (1.0 - np.abs(d["w"] @ VIEW))))
 for col in (0, 1):
     p.subplot(0, col)
     p.set_background("white")
