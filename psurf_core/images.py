@@ -192,6 +192,18 @@ def _atomic_target(path: str) -> str:
     return os.path.join(d, f".{stem}.{os.getpid()}.tmp{ext}")
 
 
+def write_atomically(path: str, write) -> None:
+    """``write(target)`` to a temporary name beside ``path`` (same extension), then move it
+    into place: a failed write leaves nothing behind."""
+    target = _atomic_target(path)
+    try:
+        write(target)
+        os.replace(target, path)
+    finally:
+        if os.path.exists(target):
+            os.remove(target)
+
+
 def write_png(path: str, rgb8: np.ndarray, *, atomic: bool = True) -> None:
     """Write an 8-bit RGB image as PNG.
 
@@ -205,14 +217,13 @@ def write_png(path: str, rgb8: np.ndarray, *, atomic: bool = True) -> None:
     """
     import imageio.v3 as iio
 
-    target = _atomic_target(path) if atomic else path
-    try:
+    def write(target):
         iio.imwrite(target, np.ascontiguousarray(rgb8, dtype=np.uint8), extension=".png")
-        if atomic:
-            os.replace(target, path)
-    finally:
-        if atomic and os.path.exists(target):
-            os.remove(target)
+
+    if atomic:
+        write_atomically(path, write)
+    else:
+        write(path)
 
 
 def can_write_exr() -> tuple[bool, str]:
@@ -242,15 +253,9 @@ def write_exr(path: str, img: np.ndarray) -> None:
     """
     import OpenEXR
 
-    target = _atomic_target(path)
-    try:
-        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-        rgb = np.ascontiguousarray(img, dtype=np.float32)
-        OpenEXR.File(header, {"RGB": rgb}).write(target)
-        os.replace(target, path)
-    finally:
-        if os.path.exists(target):
-            os.remove(target)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    rgb = np.ascontiguousarray(img, dtype=np.float32)
+    write_atomically(path, lambda target: OpenEXR.File(header, {"RGB": rgb}).write(target))
 
 
 def relative_mse(img: np.ndarray, ref: np.ndarray) -> float:
@@ -329,13 +334,7 @@ def figure_png(path: str, panels: list[dict], *, title: str | None = None,
             ax.imshow(p["image"], interpolation="nearest")
     if title:
         fig.suptitle(title, fontsize=10)
-    target = _atomic_target(path)
-    try:
-        fig.savefig(target, format="png")
-        os.replace(target, path)
-    finally:
-        if os.path.exists(target):
-            os.remove(target)
+    write_atomically(path, lambda target: fig.savefig(target, format="png"))
 
 
 def comparison_figure(path: str, images: dict[str, np.ndarray], variances: dict[str, np.ndarray],

@@ -141,8 +141,20 @@ class PointLight:
         return 4.0 * np.pi * self.intensity
 
 
+class _Lambertian:
+    """The power of a one-sided Lambertian emitter of ``radiance`` and ``area``."""
+
+    @property
+    def power(self) -> float:
+        return float(np.pi * self.area * np.mean(self.radiance))
+
+    @property
+    def power_rgb(self) -> np.ndarray:
+        return np.pi * self.area * self.radiance
+
+
 @dataclass(frozen=True)
-class AreaLight:
+class AreaLight(_Lambertian):
     """One-sided Lambertian parallelogram ``corner + u edge_u + v edge_v``, ``u, v`` in [0, 1]."""
 
     corner: np.ndarray
@@ -161,17 +173,9 @@ class AreaLight:
     def area(self) -> float:
         return float(np.linalg.norm(np.cross(self.edge_u, self.edge_v)))
 
-    @property
-    def power(self) -> float:
-        return float(np.pi * self.area * np.mean(self.radiance))
-
-    @property
-    def power_rgb(self) -> np.ndarray:
-        return np.pi * self.area * self.radiance
-
 
 @dataclass(frozen=True)
-class MeshLight:
+class MeshLight(_Lambertian):
     """Triangle mesh; every triangle emits ``radiance`` on its counter-clockwise front side.
 
     Attributes
@@ -209,14 +213,6 @@ class MeshLight:
     @property
     def area(self) -> float:
         return float(self.areas.sum())
-
-    @property
-    def power(self) -> float:
-        return float(np.pi * self.area * np.mean(self.radiance))
-
-    @property
-    def power_rgb(self) -> np.ndarray:
-        return np.pi * self.area * self.radiance
 
 
 @dataclass(frozen=True)

@@ -205,13 +205,7 @@ def write_error_vs_time_png(path: str, study: dict) -> None:
     ax.set_title(f"{os.path.basename(study['scene'])}: error vs time", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
-    target = im._atomic_target(path)
-    try:
-        fig.savefig(target, format="png")
-        os.replace(target, path)
-    finally:
-        if os.path.exists(target):
-            os.remove(target)
+    im.write_atomically(path, lambda target: fig.savefig(target, format="png"))
 
 
 def write_reference_npz(path: str, study: dict, scene: Scene) -> None:
@@ -236,14 +230,11 @@ def write_reference_npz(path: str, study: dict, scene: Scene) -> None:
     }
     # The pass moments, so that a later compare --reference can check its reliability.
     data.update(study["arrays"].get("reference_moments") or {})
-    target = im._atomic_target(path)
-    try:
+    def write(target):
         with open(target, "wb") as f:
             np.savez_compressed(f, **data)
-        os.replace(target, path)
-    finally:
-        if os.path.exists(target):
-            os.remove(target)
+
+    im.write_atomically(path, write)
 
 
 #: Files :func:`write_outputs` writes into the output folder.

@@ -38,9 +38,9 @@ import math
 import numpy as np
 
 from . import geometry
-from . import trace as ref
 from . import trace_buffers as buffers
 from . import trace_emit_compiled as emission
+from . import trace_numpy as ref
 from . import trace_shadow as shadow
 from .kernels.buffers import HitBuffers
 from .kernels.jit import kernel, twin

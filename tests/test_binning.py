@@ -75,7 +75,8 @@ def test_random_parallelograms_conservative():
     w1 /= np.linalg.norm(w1, axis=1, keepdims=True)
     x2 = rng.uniform(-1.5, 1.5, size=(m, 3))
     T2, T1 = rng.exponential(1.0, m), rng.exponential(1.0, m)
-    from psurf_core.techniques.base import Primitives, clip_bounds, wedge_hull
+    from psurf_core.techniques.base import Primitives, clip_bounds
+    from psurf_core.techniques.bounds import wedge_hull
 
     c = [x2, x2 + T2[:, None] * w2, x2 + T1[:, None] * w1,
          x2 + T2[:, None] * w2 + T1[:, None] * w1]

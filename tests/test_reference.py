@@ -15,12 +15,8 @@ import pytest
 from psurf_core.camera import camera_rays, project
 from psurf_core.constants import MAX_TRACE_DEPTH
 from psurf_core.geometry import blockers_of, ray_box, ray_parallelogram
-from psurf_core.reference import (
-    _gauss_legendre_panels,
-    reference_image,
-    reference_pass,
-    single_scatter_quadrature,
-)
+from psurf_core.reference import reference_image, reference_pass, single_scatter_quadrature
+from psurf_core.reference_quadrature import gauss_legendre_panels
 from psurf_core.sampling import phase_value, sample_uniform_sphere
 from psurf_core.scene import (
     AreaLight,
@@ -164,8 +160,8 @@ def _brute_force_single(scene, light, o, d, s_min, s_max, n_s=256, n_uv=16):
     int dA rho(mu) Le cos_L exp(-st r) / r^2, no occluders (valid for one convex emitter).
     """
     med = scene.medium
-    us, ws = _gauss_legendre_panels(n_s)
-    ua, wa = _gauss_legendre_panels(n_uv, order=8)
+    us, ws = gauss_legendre_panels(n_s)
+    ua, wa = gauss_legendre_panels(n_uv, order=8)
     s = s_min + (s_max - s_min) * us
     x = o + s[:, None] * d  # (n_s, 3)
     cam = np.exp(-med.sigma_t * (s - s_min)) * med.sigma_s * ws * (s_max - s_min)
@@ -243,17 +239,17 @@ def _vertices(n=4000, seed=0):
 def test_guided_direction_density_is_the_sampled_one(sigma_t):
     """E[rho / p] = 1 for directions drawn from the guided mixture iff p is its density (the
     weight is bounded by 1 / GUIDE_PHASE, so the mean has a finite variance)."""
-    from psurf_core import reference as R
+    from psurf_core import reference_guide as R
 
     scene = _scene([POINT, TETRA, AREA], g=0.4, sigma_s=0.9 * sigma_t, sigma_a=0.1 * sigma_t)
-    plan = R._Plan.of(scene, "mis")
+    plan = R.Plan.of(scene, "mis")
     assert plan.directions
     x = _vertices()
     rng = np.random.default_rng(1)
     w_in = sample_uniform_sphere(rng, x.shape[0])
     weights = []
     for _ in range(25):
-        _, _, wt = R._scatter(scene, plan, x, w_in, rng)
+        _, _, wt = R.scatter(scene, plan, x, w_in, rng)
         weights.append(wt)
     wt = np.concatenate(weights)
     assert wt.max() <= 1 / R.GUIDE_PHASE + 1e-9
@@ -266,10 +262,10 @@ def test_guided_direction_density_is_the_sampled_one(sigma_t):
 def test_guided_distance_density_is_the_sampled_one(sigma_t):
     """E[st / dens; t < t_end] = 1 - exp(-st t_end) (the free-flight mass of the segment)
     for distances drawn from the guided mixture, iff dens is its density over Tr."""
-    from psurf_core import reference as R
+    from psurf_core import reference_guide as R
 
     scene = _scene([POINT, TETRA], sigma_s=0.9 * sigma_t, sigma_a=0.1 * sigma_t)
-    plan = R._Plan.of(scene, "mis")
+    plan = R.Plan.of(scene, "mis")
     assert plan.distances
     rng = np.random.default_rng(2)
     o = _vertices(2000, seed=3)
@@ -279,8 +275,8 @@ def test_guided_distance_density_is_the_sampled_one(sigma_t):
     _, t_end = ray_box(o, w, scene.medium.bounds_min, scene.medium.bounds_max)
     vals = []
     for _ in range(20):
-        t, dens = R._sample_distance(scene, plan, o, w, t_end, rng)
-        np.testing.assert_allclose(dens, R._distance_density(scene, plan, o, w, t_end, t))
+        t, dens = R.sample_distance(scene, plan, o, w, t_end, rng)
+        np.testing.assert_allclose(dens, R.distance_density(scene, plan, o, w, t_end, t))
         vals.append(np.where(t < t_end, sigma_t / dens, 0.0) - (-np.expm1(-sigma_t * t_end)))
     v = np.concatenate(vals)
     assert np.max(v) <= 1 / R.GUIDE_FLIGHT

@@ -38,7 +38,8 @@ from psurf_core.trace import trace
 
 SCENES = sorted((Path(__file__).resolve().parent.parent / "scenes").glob("*.toml"))
 TECHS = ["plane-t1t2", "planes", "plane-t1t3", "plane-t2t3-short", "cone", "cone-short",
-         "cylinder", "cylinder-short", "ss-sphere", "ss-cone", "ss-cone-short", "ss-disk",
+         "cylinder", "cylinder-short", "sphere", "disk", "disk-short", "hyperboloid",
+         "hyperboloid-short", "torus", "ss-sphere", "ss-cone", "ss-cone-short", "ss-disk",
          "ss-disk-short", "ss-plane-uv", "ss-plane-ut", "ss-plane-ut-short", "ss-plane-vt",
          "ss-plane-vt-short"]
 RTOL = 1e-13

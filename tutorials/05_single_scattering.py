@@ -319,7 +319,7 @@ ins_m = inspect_pixel(mesh_scene, "ss-plane-uv", 0, 0, (32, 14),
 paths = ins_m.paths[b]
 d = prims.data
 tri = light.triangles[paths.tri[prims.photon]]  # (M, 3, 3) each photon's emitting triangle
-shift = d["T1"][:, None] * d["w"]  # T w
+shift = d["T1"][:, None] * d["w"]  # T w (the photon's flight: T1)
 copies = np.stack([d["org"], d["org"] + d["A"], d["org"] + d["B"]], axis=1)  # drawn corners
 
 p = pv.Plotter(off_screen=True, window_size=(2000, 900), shape=(1, 2), border=True,

@@ -179,11 +179,17 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
             px[i, j], py[i, j], _ = _project(a[j, 0], a[j, 1], a[j, 2], cam)
             ymin = min(ymin, py[i, j])
             ymax = max(ymax, py[i, j])
-        lo = max(np.floor(ymin - _SPAN_MARGIN), y0[i])
-        hi = min(np.floor(ymax + _SPAN_MARGIN) + 1, y1[i])
-        r0[i] = int(lo)
-        nr[i] = max(int(hi) - int(lo), 0)
+        r0[i], nr[i] = _row_range(ymin, ymax, y0[i], y1[i])
     return px, py, count, r0, nr
+
+
+@inline
+def _row_range(ymin, ymax, y0, y1):
+    """First row and number of rows of a polygon spanning ``[ymin, ymax]`` (with the span
+    margin), within the image rows ``[y0, y1)``."""
+    lo = max(np.floor(ymin - _SPAN_MARGIN), y0)
+    hi = min(np.floor(ymax + _SPAN_MARGIN) + 1, y1)
+    return int(lo), max(int(hi) - int(lo), 0)
 
 
 @inline
@@ -248,10 +254,7 @@ def _cloud_project(cloud, live, near, cam, x0, x1, y0, y1):  # pragma: no cover 
         for j in range(n):
             ymin = min(ymin, py[i, j])
             ymax = max(ymax, py[i, j])
-        lo = max(np.floor(ymin - _SPAN_MARGIN), y0[i])
-        hi = min(np.floor(ymax + _SPAN_MARGIN) + 1, y1[i])
-        r0[i] = int(lo)
-        nr[i] = max(int(hi) - int(lo), 0)
+        r0[i], nr[i] = _row_range(ymin, ymax, y0[i], y1[i])
     return px, py, count, r0, nr
 
 

@@ -165,6 +165,9 @@ class Technique:
     """
 
     name = "?"
+    #: ``(long name, short name)`` of a technique built as ``Technique(short)`` (short name
+    #: None: there is no short variant); None: the class sets ``name`` itself.
+    names: tuple | None = None
     family = "?"
     #: The family's compiled declaration; None: the numpy stages only.
     compiled: Compiled | None = None
@@ -173,10 +176,21 @@ class Technique:
     max_k: int | None = None
     lights = ("point", "area", "mesh")
     short = False
+    #: Whether the technique sweeps a surface with a scaled normal (:meth:`scaled_normal`);
+    #: False for the kernel estimators, which blur points or beams instead.
+    surface = True
     #: Share of each pass's photons the technique sweeps inside an MIS set (``NAME@0.25``):
     #: the first ``round(share x batch)`` photons of every batch (photons are iid, so any
     #: subset of fixed size is an unbiased sample); the MIS weights use sample counts.
     share = 1.0
+
+    def __init__(self, short: bool = False):
+        self.short = bool(short)
+        if self.names is not None:
+            long_name, short_name = self.names
+            if short and short_name is None:
+                raise ValueError(f"{long_name} has no short variant")
+            self.name = short_name if short else long_name
 
     @property
     def label(self) -> str:
@@ -268,6 +282,41 @@ class Technique:
         if self.compiled is None or self.compiled.density is None:
             raise NotImplementedError(f"{self.name} has no MIS density")
         return self.compiled.density(rec, self.short)
+
+    # ---------------------------------------------------------------- the swept surface
+    def scaled_normal(self, rec) -> np.ndarray:
+        """(H, 3) scaled normal ``n`` of the surface this technique sweeps, at the paths
+        ``rec`` (:class:`~psurf_core.path_record.PathRecord`). Every family with a surface
+        provides it from its module's own ``scaled_normal``; a family without one (the kernel
+        estimators) declares ``surface = False``."""
+        raise NotImplementedError(f"{self.name} declares no scaled normal")
+
+    def hit_normals(self, hits: Hits, prims: Primitives, paths, rays,
+                    ctx: PassContext) -> np.ndarray:
+        """(H, 3) scaled normal ``n`` at each hit: :meth:`scaled_normal` on the path each hit
+        implies (:meth:`reconstruct`); NaN rows where the technique sweeps no surface."""
+        if not self.surface:
+            return np.full((len(hits), 3), np.nan)
+        rec = self.reconstruct(hits, prims, paths, rays, ctx)
+        return np.asarray(self.scaled_normal(rec), dtype=float)
+
+    # ---------------------------------------------------------------- drawing
+    #: The family module's ``surface_grid(G, short, far)`` (``G``: primitives' records), the
+    #: points sweeping each primitive's surface; None where the family declares none.
+    grid = None
+
+    def surface_grid(self, prims: Primitives, idx: np.ndarray, far: float) -> np.ndarray:
+        """(M, nu, nv, 3) points sweeping the surface of primitives ``idx`` (unclipped; a long
+        primitive's unbounded extent stops at ``far``), what the Create view meshes."""
+        if self.grid is None:
+            raise NotImplementedError(f"{self.name} declares no surface grid")
+        return self.grid(prims.data[idx], self.short, far)
+
+    def kernel_extent(self, prims: Primitives, idx: np.ndarray, scene: Scene,
+                      far: float) -> np.ndarray:
+        """What a kernel estimator (``surface = False``) blurs, for drawing: (M, 1, 3) photon
+        points or (K, 2, 3) beam segments inside the medium box."""
+        raise NotImplementedError(f"{self.name} declares no kernel extent")
 
 
 # ------------------------------------------------------------------------- shared helpers
@@ -378,44 +427,3 @@ def clear_from(scene: Scene, blockers: Blockers, start: np.ndarray, end: np.ndar
 def clip_bounds(scene: Scene, lo: np.ndarray, hi: np.ndarray):
     """Intersect per-primitive bounds (M, 3) with the medium box."""
     return (np.maximum(lo, scene.medium.bounds_min), np.minimum(hi, scene.medium.bounds_max))
-
-
-def wedge_hull(scene: Scene, origin: np.ndarray, u: np.ndarray, v: np.ndarray,
-               lu: np.ndarray | None = None, lv: np.ndarray | None = None) -> np.ndarray:
-    """(M, 4, 3) convex hulls of the parallelograms ``origin + a u + b v``, ``0 <= a <= lu``,
-    ``0 <= b <= lv`` (``lu, lv`` given), or of the part inside the medium box of the wedges
-    ``a, b >= 0`` (``None``).
-
-    For unit ``u, v`` with ``c = u . v``, ``|a u + b v|^2 >= (a + b)^2 (1 + c) / 2`` on the
-    wedge, so its points within distance ``D`` of ``origin`` (``D``: the farthest box corner)
-    have ``a + b <= L = D sqrt(2 / (1 + c))``: the triangle ``origin, origin + L u,
-    origin + L v`` (returned with its last vertex repeated) contains them. ``L`` is inf for a
-    degenerate wedge (``c = -1``): binning then uses the rectangle.
-    """
-    if lu is not None:
-        a, b = lu[:, None] * u, lv[:, None] * v
-        return np.stack([origin, origin + a, origin + a + b, origin + b], axis=1)
-    med = scene.medium
-    corners = np.array([[x, y, z] for x in (med.bounds_min[0], med.bounds_max[0])
-                        for y in (med.bounds_min[1], med.bounds_max[1])
-                        for z in (med.bounds_min[2], med.bounds_max[2])])
-    far = np.sqrt(((origin[:, None, :] - corners[None]) ** 2).sum(axis=2).max(axis=1))
-    c = np.clip(dot(u, v), -1.0, 1.0)
-    with np.errstate(divide="ignore"):
-        big = far * np.sqrt(2.0 / (1.0 + c)) * (1.0 + 1e-9)
-    # Past ~1e3 box sizes the clipped vertices would lose precision: use the rectangle.
-    big = np.where(big <= 1e3 * far, big, np.inf)
-    with np.errstate(invalid="ignore"):  # inf x 0: NaN, which also falls back
-        a, b = big[:, None] * u, big[:, None] * v
-    return np.stack([origin, origin + a, origin + b, origin + b], axis=1)
-
-
-def ray_bounds(origin: np.ndarray, direction: np.ndarray, length: np.ndarray | None):
-    """Bounds of segments (``length`` given) or of rays to infinity (``length`` None)."""
-    if length is not None:
-        end = origin + length[:, None] * direction
-        return np.minimum(origin, end), np.maximum(origin, end)
-    inf = np.full_like(origin, np.inf)
-    lo = np.where(direction < 0, -inf, origin)
-    hi = np.where(direction > 0, inf, origin)
-    return lo, hi

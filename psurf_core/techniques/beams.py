@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..sampling import phase_value
+from . import grids
 from .base import (
     Hits,
     PassContext,
@@ -40,9 +41,9 @@ from .base import (
     dot,
     in_medium,
     on_ray,
-    ray_bounds,
     segments_clear,
 )
+from .bounds import ray_bounds
 from .points import kernel_radius
 
 #: ``|w x psi|`` below this is treated as parallel (no hit).
@@ -53,13 +54,11 @@ class PhotonBeams(Technique):
     """Photon beams with a 1D kernel; ``short`` limits each beam to its sampled flight."""
 
     family = "beams"
+    names = ("beams-long", "beams")
+    surface = False  # a kernel blurs photon beams: no swept surface, no scaled normal
     kernel_dim = 1
     min_k = 1
     default_radius_fraction = 0.01
-
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "beams" if short else "beams-long"
 
     # ------------------------------------------------------------------ Create
     def create(self, paths, ctx: PassContext) -> Primitives:
@@ -143,3 +142,18 @@ class PhotonBeams(Technique):
                         scal / (2.0 * kernel_radius(self, ctx) * np.maximum(sin, PARALLEL_SIN)),
                         0.0)
         return paths.beta[prims.photon[p], prims.K[p] - 1] * scal[:, None]
+
+    # ------------------------------------------------------------------ drawing
+    def kernel_extent(self, prims, idx, scene, far) -> np.ndarray:
+        """(K, 2, 3) each beam's part inside the medium box (out to ``T``, short, or ``far``);
+        beams that miss the box are left out."""
+        o, w = prims.data["o"][idx], prims.data["w"][idx]
+        T = grids.lengths(prims.data["T"][idx] if self.short else None, len(idx), far)
+        lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / w
+            t0, t1 = (lo - o) * inv, (hi - o) * inv
+        te = np.nanmax(np.minimum(t0, t1), axis=1).clip(0.0)
+        tx = np.minimum(np.nanmin(np.maximum(t0, t1), axis=1), T)
+        keep = tx > te
+        return np.stack([(o + te[:, None] * w)[keep], (o + tx[:, None] * w)[keep]], axis=1)

@@ -28,6 +28,7 @@ from ..kernels.shadow import CLEAR, status
 from ..kernels.vec import madd, scale, sub
 from ..path_record import with_t1, with_w1
 from ..records import Vec, table
+from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
@@ -172,6 +173,13 @@ def _density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, nph, 3) the nappe from apex ``x1`` about ``w2`` (``cos = c1``), out to ``T1``
+    (short) or ``far``: the drawing's sweep grid (:mod:`.grids`)."""
+    return grids.cone(G.x1, G.w2, G.c1, grids.lengths(G.T1 if short else None, len(G), far))
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonCone(Technique):
     """The photon cone; ``short`` restricts ``t1* < T1`` (track-length)."""
@@ -181,9 +189,8 @@ class PhotonCone(Technique):
     compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "cone-short" if short else "cone"
+    names = ("cone", "cone-short")
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)

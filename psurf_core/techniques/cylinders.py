@@ -23,11 +23,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels.jit import twin
-from ..kernels.shadow import BLOCKED, CLEAR, status
 from ..kernels.vec import add, madd, scale, sub
 from ..path_record import with_t2, with_w1
 from ..records import Vec, table
-from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
+from . import grids
+from .base import Compiled, Primitives, Technique, clip_bounds, dot
+from .planes import segments, visibility  # the path x2 -> x1* = x2 + t2* w2 -> x0
 from .surface_common import (
     NDP_MIN,
     beta1,
@@ -39,7 +40,6 @@ from .surface_common import (
     q_to_w2,
     quadratic_roots,
     radial,
-    rebuilt_clear,
     ring,
     select_photons,
     sweep_bounds,
@@ -129,29 +129,6 @@ def _accept(G, o, psi, s, short):
 
 
 # ------------------------------------------------------------------------- Evaluate
-def segments(G, x0, hit):
-    """The reconstructed path's segments: ``x2 -> x1*``, ``x1* -> x0``."""
-    x1 = G.x2 + hit.t2[:, None] * G.w2
-    return [(G.x2, x1), (x1, x0)]
-
-
-def visibility(G, x0, hit, medium, blockers):
-    """(H,) bool: ``x2 -> x1*`` counts (on the photon's own segment, or ``x1*`` in the box
-    and unoccluded) and ``x1* -> x0`` is unoccluded."""
-    x1 = G.x2 + hit.t2[:, None] * G.w2
-    known = (G.own != 0.0) & (hit.t2 < G.T2)
-    return segments_clear(blockers, (x1, x0),
-                          ok=rebuilt_clear(G.x2, x1, known, medium, blockers))
-
-
-@twin(visibility, inline=True)
-def _visibility(G, x0, hit, medium, blockers):
-    x1 = madd(G.x2, hit.t2, G.w2)
-    st0 = rebuilt_clear(G.x2, x1, G.own != 0.0 and hit.t2 < G.T2, medium, blockers)
-    st1 = CLEAR if st0 == BLOCKED else status(x1, x0, blockers)
-    return st0, st1, CLEAR
-
-
 def contribution(G, psi, s, s_min, hit, short, medium):
     """``(1/2pi) [E(t2*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight."""
     extra = 0.0 if short else hit.t2
@@ -191,6 +168,20 @@ def _density(rec, short):
     return q * rec.pdf.e2 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 36, 3) the cylinder of radius ``T1 s1`` about ``x2 + h w2``, from
+    ``h = T1 c1`` over ``T2`` (short) or ``far``: the drawing's sweep grid (:mod:`.grids`)."""
+    m = len(G)
+    e1, e2 = grids.frame(G.w2)
+    around = (G.T1 * G.s1)[:, None, None] * grids.ring(e1, e2, 36)
+    start = G.x2 + (G.T1 * G.c1)[:, None] * G.w2
+    h = grids.lengths(G.T2 if short else None, m, far)
+    t = np.stack([np.zeros(m), h], axis=1)
+    return (start[:, None, None, :] + t[:, :, None, None] * G.w2[:, None, None, :]
+            + around[:, None, :, :])
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonCylinder(Technique):
     """The photon cylinder; ``short`` restricts ``t2* < T2`` (track-length)."""
@@ -200,9 +191,8 @@ class PhotonCylinder(Technique):
     compiled = Compiled(CylinderGeometry, CylinderHit, 2, roots, accept, visibility,
                         contribution, segments, reconstruct, density)
 
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "cylinder-short" if short else "cylinder"
+    names = ("cylinder", "cylinder-short")
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=2)

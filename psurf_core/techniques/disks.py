@@ -21,12 +21,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels.jit import twin
-from ..kernels.shadow import CLEAR, status
 from ..kernels.vec import madd, scale, sub
-from ..path_record import with_t1, with_w1
 from ..records import Vec, table
 from ..sampling import phase_value
-from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
+from . import grids
+from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot
+from .cones import reconstruct, segments, visibility  # the path x1 + t1 w1, its segment x1 -> x0
 from .surface_common import (
     NDP_MIN,
     SIN_MIN,
@@ -114,21 +114,6 @@ def _accept(G, o, psi, s, short):
 
 
 # ------------------------------------------------------------------------- Evaluate
-def segments(G, x0, hit):
-    """The reconstructed path's one segment to test: ``x1 -> x0``."""
-    return [(G.x1, x0)]
-
-
-def visibility(G, x0, hit, medium, blockers):
-    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box)."""
-    return segments_clear(blockers, (G.x1, x0))
-
-
-@twin(visibility)
-def _visibility(G, x0, hit, medium, blockers):
-    return status(G.x1, x0, blockers), CLEAR, CLEAR
-
-
 def contribution(G, psi, s, s_min, hit, short, medium):
     """``2pi rho(c1*) [E(t1*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight
     (``rho / p(ph1)``; ``p(c1)`` is not in ``q``)."""
@@ -147,16 +132,6 @@ def _contribution(G, psi, s, s_min, hit, short, medium):
 
 
 # ------------------------------------------------------------------------- MIS
-def reconstruct(rec, G, hit):
-    """The hit's full path: the photon's record with ``t1*`` and ``w1*``."""
-    return rec.with_(t1=hit.t1, w1=hit.w1)
-
-
-@twin(reconstruct)
-def _reconstruct(rec, G, hit):
-    return with_w1(with_t1(rec, hit.t1), hit.w1)
-
-
 def density(rec, short):
     """Relative ``Q = q_{<=w2} p(t2) (1/2pi) t1 |(w1 x w2) . psi| / s1^2`` (short:
     ``* E(t1)``)."""
@@ -173,6 +148,15 @@ def _density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, nth, 3) the half-disk from ``x1`` between ``w2`` and ``-w2`` through ``e_r``,
+    out to ``T1`` (short) or ``far``: the drawing's sweep grid (:mod:`.grids`)."""
+    m = len(G)
+    return grids.half_disk(G.x1, G.w2, G.e_r, grids.lengths(G.T1 if short else None, m, far),
+                           np.full(m, np.pi))
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonDisk(Technique):
     """The photon disk; ``short`` restricts ``t1* < T1`` (track-length)."""
@@ -182,9 +166,8 @@ class PhotonDisk(Technique):
     compiled = Compiled(DiskGeometry, DiskHit, 1, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "disk-short" if short else "disk"
+    names = ("disk", "disk-short")
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)

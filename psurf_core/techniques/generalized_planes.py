@@ -36,6 +36,7 @@ from ..kernels.shadow import BLOCKED, CLEAR, status
 from ..kernels.vec import madd
 from ..path_record import with_t1, with_t2, with_t3
 from ..records import Vec, table
+from . import grids
 from .base import (
     Compiled,
     Primitives,
@@ -43,10 +44,9 @@ from .base import (
     clip_bounds,
     cross,
     dot,
-    ray_bounds,
     segments_clear,
-    wedge_hull,
 )
+from .bounds import ray_bounds, wedge_hull
 from .surface_common import (
     NDP_MIN,
     beta1,
@@ -232,12 +232,23 @@ _COMPILED = {
 }
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 2, 3) each plane's corners ``origin + a w3 + b v``, ``a <= Tu``, ``b <= Tv``
+    (short; long: out to ``far``): the drawing's sweep grid (:mod:`.grids`)."""
+    m = len(G)
+    return grids.parallelograms(G.origin, G.w3, G.v, grids.lengths(G.Tu if short else None, m, far),
+                                grids.lengths(G.Tv if short else None, m, far))
+
+
 # ------------------------------------------------------------------------- Create
 class GeneralizedPlane(Technique):
     """Generalized plane ``[t1, t3]`` (``which="t1t3"``) or ``[t2, t3]`` (``"t2t3"``)."""
 
     family = "planes"
     min_k = 3
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool, which: str):
         if which not in ("t1t3", "t2t3"):

@@ -30,12 +30,13 @@ from ..kernels.jit import twin
 from ..kernels.vec import madd, scale, sub
 from ..path_record import revolution_axis
 from ..records import Vec, table
+from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot
+from .cones import contribution  # the same X: (1/2pi) [E(t1*)] ss rho0 E(s*) / |n . psi|
 from .revolutions import RevolutionHit, reconstruct, revolved, segments, visibility
 from .surface_common import (
     NDP_MIN,
     beta1,
-    camera_term,
     gather,
     q_to_w2,
     quadratic_roots,
@@ -167,18 +168,8 @@ def _accept(G, o, psi, s, short):
 
 
 # ------------------------------------------------------------------------- Evaluate
-def contribution(G, psi, s, s_min, hit, short, medium):
-    """``(1/2pi) [E(t1*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight."""
-    extra = 0.0 if short else hit.t1
-    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
-        hit.n_dot_psi
-
-
-@twin(contribution)
-def _contribution(G, psi, s, s_min, hit, short, medium):
-    extra = 0.0 if short else hit.t1
-    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
-        hit.n_dot_psi
+# segments and visibility: the surfaces of revolution's (.revolutions); contribution: the
+# cone's (.cones), the same X.
 
 
 # ------------------------------------------------------------------------- MIS
@@ -196,6 +187,16 @@ def _density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 36, 3) the generator ``x2 + T2 w2 + t w1``, ``t <= T1`` (short) or ``far``,
+    revolved about ``(x2, A3)``: the drawing's sweep grid (:mod:`.grids`)."""
+    t1 = grids.lengths(G.T1 if short else None, len(G), far)
+    v0 = G.T2[:, None] * G.w2
+    v1 = v0 + t1[:, None] * G.w1
+    return grids.revolve(G.x2, G.A3, np.stack([v0, v1], axis=1))
+
+
 # ------------------------------------------------------------------------- Create
 class Hyperboloid(Technique):
     """The hyperboloid ``[t1, ph2]``; ``short`` restricts ``t1* < T1``."""
@@ -205,9 +206,8 @@ class Hyperboloid(Technique):
     compiled = Compiled(HyperboloidGeometry, RevolutionHit, 2, roots, accept, visibility,
                         contribution, segments, reconstruct, density)
 
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "hyperboloid-short" if short else "hyperboloid"
+    names = ("hyperboloid", "hyperboloid-short")
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=2)

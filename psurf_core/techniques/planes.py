@@ -34,6 +34,7 @@ from ..kernels.shadow import BLOCKED, CLEAR, status
 from ..kernels.vec import madd, sub
 from ..path_record import with_t1, with_t2
 from ..records import Vec, table
+from . import grids
 from .base import (
     Compiled,
     Primitives,
@@ -41,10 +42,9 @@ from .base import (
     clip_bounds,
     cross,
     dot,
-    ray_bounds,
     segments_clear,
-    wedge_hull,
 )
+from .bounds import ray_bounds, wedge_hull
 from .surface_common import (
     beta1,
     camera_term,
@@ -204,6 +204,15 @@ def _density(rec, short):
     return q * rec.pdf.e1 * rec.pdf.e2 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 2, 3) each plane's corners ``x2 + a w2 + b w1``, ``a <= T2``, ``b <= T1``
+    (short; long: out to ``far``): the drawing's sweep grid (:mod:`.grids`)."""
+    m = len(G)
+    return grids.parallelograms(G.x2, G.w2, G.w1, grids.lengths(G.T2 if short else None, m, far),
+                                grids.lengths(G.T1 if short else None, m, far))
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonPlane(Technique):
     """The photon plane ``[t1, t2]``; ``short`` selects the Tungsten (track-length) variant."""
@@ -213,9 +222,8 @@ class PhotonPlane(Technique):
     compiled = Compiled(PlaneGeometry, PlaneHit, 1, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
-    def __init__(self, short: bool):
-        self.short = short
-        self.name = "plane-t1t2-short" if short else "plane-t1t2"
+    names = ("plane-t1t2", "plane-t1t2-short")
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         scene = ctx.scene

@@ -38,6 +38,7 @@ class _PointKernel(Technique):
     """Shared Create stage of the photon-point baselines (one primitive per valid vertex)."""
 
     family = "points"
+    surface = False  # a kernel blurs photon points: no swept surface, no scaled normal
     min_k = 1
     default_radius_fraction = 0.03
 
@@ -64,6 +65,10 @@ class _PointKernel(Technique):
         r = kernel_radius(self, ctx)
         lo, hi = clip_bounds(scene, xp - r, xp + r)
         return Primitives(self.name, photon, K, lo, hi, dict(xp=xp, w=w))
+
+    def kernel_extent(self, prims, idx, scene, far) -> np.ndarray:
+        """(M, 1, 3) the photon points (drawn as balls of the kernel radius)."""
+        return prims.data["xp"][idx][:, None, :]
 
     def _weight(self, hits: Hits, prims: Primitives, paths, rays, ctx) -> np.ndarray:
         """(H, 3) ``beta_j (ss/st) rho(-w_j . psi)``: the photon's weight at the camera vertex."""

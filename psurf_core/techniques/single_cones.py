@@ -39,6 +39,7 @@ from .cones import (
     reconstruct,
     scaled_normal,
     segments,
+    surface_grid,  # the same nappe: apex x1, axis w2, cos c1
     visibility,
 )
 from .single import SingleScatter, sweep_bounds
@@ -79,9 +80,8 @@ class SingleCone(SingleScatter):
     compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
-    def __init__(self, short: bool = False):
-        self.short = bool(short)
-        self.name = "ss-cone-short" if short else "ss-cone"
+    names = ("ss-cone", "ss-cone-short")
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         """One nappe per photon (:class:`~psurf_core.techniques.cones.ConeGeometry`: apex

@@ -26,6 +26,7 @@ from ..kernels.jit import twin
 from ..kernels.vec import madd, scale, sub
 from ..pdfs import emission_pdf
 from ..records import Vec, table
+from . import grids
 from .base import Compiled, Primitives, cross, dot
 from .cones import reconstruct, segments, visibility  # the path's one segment x1 -> x0
 from .single import SingleScatter, arc_range, columns, sweep_bounds
@@ -144,6 +145,16 @@ def _density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, nth, 3) the half-disk from ``x1`` about ``axis`` through ``er`` (a quarter for
+    an area / mesh light), out to ``T1`` (short) or ``far``: the drawing's sweep grid."""
+    one = G.one_sided.astype(bool)
+    return grids.half_disk(G.x1, G.axis, G.er,
+                           grids.lengths(G.T1 if short else None, len(G), far),
+                           np.where(one, 0.5 * np.pi, np.pi))
+
+
 # ------------------------------------------------------------------------- Create
 class SingleDisk(SingleScatter):
     """``ss-disk`` ``[t, cos th]``: the half-plane through the axis containing ``w``;
@@ -152,9 +163,8 @@ class SingleDisk(SingleScatter):
     compiled = Compiled(DiskGeometry, DiskHit, 1, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
-    def __init__(self, short: bool = False):
-        self.short = bool(short)
-        self.name = "ss-disk-short" if short else "ss-disk"
+    names = ("ss-disk", "ss-disk-short")
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         """One half-plane per photon (:class:`DiskGeometry`)."""

@@ -35,6 +35,7 @@ from ..kernels.vec import madd
 from ..path_record import photon_table, with_light_point, with_t1
 from ..pdfs import MESH, position_pdfs
 from ..records import Vec, table
+from . import grids
 from .base import Compiled, Primitives, cross, dot, segments_clear
 from .single import SingleScatter, columns, sweep_bounds
 from .surface_common import NDP_MIN, camera_term, plane_solve
@@ -241,6 +242,22 @@ _COMPILED = {
 }
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 2, 3) each patch's corners: ``org + a A + b B`` over the light's parallelogram
+    or triangle (``[u, v]``), or over ``a <= amax`` and ``b <= T1`` (short) or ``far`` (a
+    strip): the drawing's sweep grid (:mod:`.grids`)."""
+    tri = G.tri.astype(bool)
+    a = np.linspace(0, 1, 2)
+    uv = (G.org[:, None, None, :] + a[None, :, None, None] * G.A[:, None, None]
+          + (a[None, None, :, None] * np.where(tri[:, None, None, None],
+                                               1.0 - a[None, :, None, None], 1.0))
+          * G.B[:, None, None])
+    tb = grids.lengths(G.T1 if short else None, len(G), far)
+    strip = grids.parallelograms(G.org, G.A, G.B, G.amax, tb)
+    return np.where((G.strip != 0.0)[:, None, None, None], strip, uv)
+
+
 # ------------------------------------------------------------------------- Create
 class SinglePlane(SingleScatter):
     """``ss-plane-{uv,ut,vt}``: the light translated by ``T w`` or a strip swept along ``w``.
@@ -253,6 +270,8 @@ class SinglePlane(SingleScatter):
     """
 
     lights = ("area", "mesh")
+
+    grid = staticmethod(surface_grid)
 
     def __init__(self, short: bool = False, which: str = "uv"):
         if which not in ("uv", "ut", "vt"):

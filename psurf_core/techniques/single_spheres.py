@@ -20,12 +20,13 @@ import numpy as np
 
 from ..kernels.jit import twin
 from ..kernels.vec import madd, scale, sub
-from ..path_record import with_w1
 from ..pdfs import emission_pdf
 from ..records import Vec, table
+from . import grids
 from .base import Compiled, Primitives, dot
 from .cones import segments, visibility  # the path's one segment x1 -> x0
 from .single import SingleScatter, columns, sweep_bounds
+from .spheres import reconstruct  # the photon's record with w1*
 from .surface_common import NDP_MIN, camera_term, quadratic_roots, unit
 
 
@@ -106,16 +107,6 @@ def _contribution(G, psi, s, s_min, hit, short, medium):
 
 
 # ------------------------------------------------------------------------- MIS
-def reconstruct(rec, G, hit):
-    """The hit's full path: the photon's record (``t1 = T``) with ``w1*``."""
-    return rec.with_(w1=hit.w1)
-
-
-@twin(reconstruct)
-def _reconstruct(rec, G, hit):
-    return with_w1(rec, hit.w1)
-
-
 def density(rec, short):
     """``Q = p(u,v) st E(t) t^2 |w . psi|``."""
     return rec.pdf.uv * rec.pdf.t1 * np.abs(dot(scaled_normal(rec.w1, rec.t1), rec.psi))
@@ -126,6 +117,14 @@ def _density(rec, short):
     return rec.pdf.uv * rec.pdf.t1 * abs(dot(scaled_normal(rec.w1, rec.t1), rec.psi))
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, nt, nph, 3) the sphere of radius ``T1`` about the light point ``x1`` (the front
+    hemisphere about ``axis`` for an area / mesh light): the drawing's sweep grid."""
+    one = G.one_sided.astype(bool)
+    return grids.sphere(G.x1, G.T1, G.axis, np.where(one, 0.5 * np.pi, np.pi))
+
+
 # ------------------------------------------------------------------------- Create
 class SingleSphere(SingleScatter):
     """``ss-sphere`` ``[cos th, ph]``: sphere (area/mesh: front hemisphere) of radius ``T``."""
@@ -133,11 +132,8 @@ class SingleSphere(SingleScatter):
     compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
-    def __init__(self, short: bool = False):
-        if short:
-            raise ValueError("ss-sphere has no short variant")
-        self.short = False
-        self.name = "ss-sphere"
+    names = ("ss-sphere", None)
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         """One sphere per photon (:class:`SphereGeometry`)."""

@@ -20,12 +20,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels.jit import twin
-from ..kernels.shadow import CLEAR, status
 from ..kernels.vec import madd, scale, sub
 from ..path_record import with_w1
 from ..records import Vec, table
 from ..sampling import phase_value
-from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
+from . import grids
+from .base import Compiled, Primitives, Technique, clip_bounds, dot
+from .cones import segments, visibility  # the path's one segment x1 -> x0
 from .surface_common import (
     NDP_MIN,
     beta1,
@@ -97,21 +98,6 @@ def _accept(G, o, psi, s, short):
 
 
 # ------------------------------------------------------------------------- Evaluate
-def segments(G, x0, hit):
-    """The reconstructed path's one segment to test: ``x1 -> x0``."""
-    return [(G.x1, x0)]
-
-
-def visibility(G, x0, hit, medium, blockers):
-    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box)."""
-    return segments_clear(blockers, (G.x1, x0))
-
-
-@twin(visibility)
-def _visibility(G, x0, hit, medium, blockers):
-    return status(G.x1, x0, blockers), CLEAR, CLEAR
-
-
 def contribution(G, psi, s, s_min, hit, short, medium):
     """``[rho(w2 . w1*) E(T1) / p(T1) = rho / st] ss rho0 E(s* - s_min) / |n . psi|`` per
     unit photon weight."""
@@ -150,6 +136,12 @@ def _density(rec, short):
     return q_to_w2(rec) * rec.pdf.t2 * rec.pdf.t1 * abs(dot(n, rec.psi))
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, nt, nph, 3) the sphere of radius ``T1`` about ``x1``: the drawing's sweep grid."""
+    return grids.sphere(G.x1, G.T1)
+
+
 # ------------------------------------------------------------------------- Create
 class PhotonSphere(Technique):
     """The photon sphere (long only)."""
@@ -159,11 +151,8 @@ class PhotonSphere(Technique):
     compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
                         segments, reconstruct, density)
 
-    def __init__(self, short: bool = False):
-        if short:
-            raise ValueError("the photon sphere has no short variant")
-        self.short = False
-        self.name = "sphere"
+    names = ("sphere", None)
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=1)

@@ -31,6 +31,7 @@ from ..kernels.vec import add, madd, scale, sub
 from ..path_record import revolution_axis
 from ..records import Vec, table
 from ..sampling import phase_value
+from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot
 from .quartic import quartic_real_roots, square_quadratic
 from .revolutions import RevolutionHit, reconstruct, revolved, segments, visibility
@@ -214,6 +215,17 @@ def _density(rec, short):
     return q_to_w2(rec) * rec.pdf.t2 * rec.pdf.t1 * abs(dot(n, rec.psi))
 
 
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 16, 36, 3) the meridian half-circle of radius ``T1`` about ``x2 + T2 w2`` revolved
+    about ``(x2, A3)``: the drawing's sweep grid (:mod:`.grids`)."""
+    th = np.linspace(0, np.pi, 16)
+    merid = (G.T2[:, None, None] * G.w2[:, None]
+             + G.T1[:, None, None] * (np.cos(th)[None, :, None] * G.w2[:, None]
+                                      + np.sin(th)[None, :, None] * G.e_r[:, None]))
+    return grids.revolve(G.x2, G.A3, merid)
+
+
 # ------------------------------------------------------------------------- Create
 class Torus(Technique):
     """The (generalised) torus ``[cos th1, ph2]`` (long only)."""
@@ -223,11 +235,8 @@ class Torus(Technique):
     compiled = Compiled(TorusGeometry, RevolutionHit, 4, roots, accept, visibility,
                         contribution, segments, reconstruct, density)
 
-    def __init__(self, short: bool = False):
-        if short:
-            raise ValueError("the torus has no short variant")
-        self.short = False
-        self.name = "torus"
+    names = ("torus", None)
+    grid = staticmethod(surface_grid)
 
     def create(self, paths, ctx) -> Primitives:
         photon, K = select_photons(self, paths, ctx, back=2)

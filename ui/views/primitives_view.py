@@ -2,18 +2,18 @@
 
 Subpaths are polylines clipped to the medium box (``PhotonPaths.clip``), one colour per scatter
 event. Primitives are drawn as geometry clipped to the box, each technique in its own colour
-(:func:`ui.views.palette.technique_colour`, the same in every view): points as spheres of
-the kernel radius, beams as tubes, planes and light copies as polygons, and spheres, cones,
-cylinders, disks and surfaces of revolution as parametric surfaces. A family the drawer does
-not know (or whose data layout changed) falls back to its primitives' bounding boxes, and the
-legend says so.
+(:func:`ui.views.palette.technique_colour`, the same in every view), from what each family
+declares in its own module (no family is known here by name): a surface technique's
+``surface_grid`` (the points sweeping each primitive: planes and light copies, spheres, cones,
+cylinders, disks and surfaces of revolution; :mod:`psurf_core.techniques.grids`) is meshed as
+quads; a kernel estimator's ``kernel_extent`` is drawn as spheres of the kernel radius
+(points) or tubes (beams). A family that declares neither (or whose data layout changed) falls
+back to its primitives' bounding boxes, and the legend says so.
 """
 
 from __future__ import annotations
 
 import numpy as np
-
-from psurf_core.techniques.base import fields_of
 
 from ._vtk import pv
 from .palette import technique_colour, text_on
@@ -121,26 +121,6 @@ def add_paths(plotter: pv.Plotter, paths_list: list, scene, n: int, *, opacity: 
 
 
 # --------------------------------------------------------------------------- surfaces
-def _frame(axis: np.ndarray):
-    """(M, 3) unit vectors ``e1, e2`` completing unit ``axis`` to an orthonormal frame."""
-    a = axis / np.linalg.norm(axis, axis=1, keepdims=True)
-    helper = np.where(np.abs(a[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
-    e1 = np.cross(a, helper)
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-    return e1, np.cross(a, e1)
-
-
-def _rotate(v: np.ndarray, axis: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """Rodrigues: rotate (M, 3) ``v`` about unit (M, 3) ``axis`` by every angle of ``phi``.
-
-    Returns (M, len(phi), 3).
-    """
-    c, s = np.cos(phi)[None, :, None], np.sin(phi)[None, :, None]
-    v_, a = v[:, None, :], axis[:, None, :]
-    return (v_ * c + np.cross(a, v_) * s
-            + a * np.sum(a * v_, axis=-1, keepdims=True) * (1.0 - c))
-
-
 def grid_surface(P: np.ndarray) -> pv.PolyData:
     """Quads of ``M`` parametric patches sampled on ``(M, na, nb, 3)`` grids."""
     m, na, nb, _ = P.shape
@@ -153,157 +133,29 @@ def grid_surface(P: np.ndarray) -> pv.PolyData:
     return pv.PolyData(P.reshape(-1, 3).astype(float), faces=q.ravel())
 
 
-def _lengths(T: np.ndarray | None, m: int, far: float) -> np.ndarray:
-    return np.full(m, far) if T is None else np.asarray(T, float)
-
-
-def _ruled(origin, dirs, length) -> np.ndarray:
-    """(M, 2, nb, 3) grid ``origin + t dirs`` for ``t`` in ``{0, length}`` (straight
-    generators along ``dirs`` (M, nb, 3))."""
-    o = origin[:, None, None, :]
-    t = np.stack([np.zeros_like(length), length], axis=1)[:, :, None, None]
-    return o + t * dirs[:, None, :, :]
-
-
-def _parallelograms(origin, u, v, tu, tv) -> np.ndarray:
-    a = np.array([0.0, 1.0])
-    return (origin[:, None, None, :] + (a[None, :, None, None] * tu[:, None, None, None])
-            * u[:, None, None, :] + (a[None, None, :, None] * tv[:, None, None, None])
-            * v[:, None, None, :])
-
-
-def _sphere_grid(centre, radius, axis=None, theta_max=None, nt=14, nph=28) -> np.ndarray:
-    m = centre.shape[0]
-    axis = np.tile([0.0, 0.0, 1.0], (m, 1)) if axis is None else axis
-    e1, e2 = _frame(axis)
-    tmax = np.full(m, np.pi) if theta_max is None else theta_max
-    th = np.linspace(0, 1, nt)[None, :] * tmax[:, None]  # (M, nt)
-    ph = np.linspace(0, 2 * np.pi, nph)
-    ring = (np.cos(ph)[None, None, :, None] * e1[:, None, None]
-            + np.sin(ph)[None, None, :, None] * e2[:, None, None])
-    dirs = (np.cos(th)[:, :, None, None] * axis[:, None, None, :]
-            + np.sin(th)[:, :, None, None] * ring)
-    return centre[:, None, None, :] + radius[:, None, None, None] * dirs
-
-
-def _cone_grid(apex, axis, c, length, nph=36) -> np.ndarray:
-    e1, e2 = _frame(axis)
-    s = np.sqrt(np.clip(1.0 - c * c, 0.0, None))
-    ph = np.linspace(0, 2 * np.pi, nph)
-    dirs = (c[:, None, None] * axis[:, None, :]
-            + s[:, None, None] * (np.cos(ph)[None, :, None] * e1[:, None]
-                                  + np.sin(ph)[None, :, None] * e2[:, None]))
-    return _ruled(apex, dirs, length)
-
-
-def _half_disk_grid(apex, axis, er, length, theta_max, nth=20) -> np.ndarray:
-    th = np.linspace(0, 1, nth)[None, :] * theta_max[:, None]
-    dirs = np.cos(th)[:, :, None] * axis[:, None, :] + np.sin(th)[:, :, None] * er[:, None, :]
-    return _ruled(apex, dirs, length)
-
-
-def _draw_family(tech, prims, idx: np.ndarray, scene, radius: float):
-    """Geometry of primitives ``idx`` of one technique (unclipped), or None if the family's
-    layout is unknown. Raises KeyError when an expected data field is missing."""
-    d = {k: v[idx] for k, v in fields_of(prims.data).items()}
-    m = idx.size
+def _family_mesh(tech, prims, idx: np.ndarray, scene, radius: float):
+    """Geometry of primitives ``idx`` of one technique (unclipped), from what its family
+    declares: the grid sweeping each surface (``tech.surface_grid``), or for a kernel
+    estimator (``tech.surface`` False) its photon points (balls of the kernel radius) or beam
+    segments (tubes). Returns ``(mesh, per_primitive)``: whether the mesh has the same
+    number of cells for every primitive, in order. NotImplementedError where the family
+    declares neither."""
     far = 3.0 * scene.medium.diagonal
-    short = bool(getattr(tech, "short", False))
-    fam = tech.family
-    name = tech.name
-    if fam == "points":
+    if tech.surface:
+        return grid_surface(tech.surface_grid(prims, idx, far)), True
+    ext = tech.kernel_extent(prims, idx, scene, far)
+    if ext.shape[1] == 1:  # photon points
         r = radius if radius > 0 else scale_of(scene)
-        return pv.PolyData(d["xp"]).glyph(geom=pv.Sphere(radius=r, theta_resolution=14,
-                                                         phi_resolution=14),
-                                          scale=False, orient=False)
-    if fam == "beams":
-        o, w = d["o"], d["w"]
-        T = _lengths(d["T"] if short else None, m, far)
-        lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / w
-            t0, t1 = (lo - o) * inv, (hi - o) * inv
-        te = np.nanmax(np.minimum(t0, t1), axis=1).clip(0.0)
-        tx = np.minimum(np.nanmin(np.maximum(t0, t1), axis=1), T)
-        keep = tx > te
-        if not keep.any():
-            return pv.PolyData()
-        a, b = o + te[:, None] * w, o + tx[:, None] * w
-        pts = np.stack([a[keep], b[keep]], axis=1).reshape(-1, 3)
-        k = int(keep.sum())
-        cells = np.column_stack([np.full(k, 2), 2 * np.arange(k), 2 * np.arange(k) + 1])
-        r = radius if radius > 0 else 0.3 * scale_of(scene)
-        return pv.PolyData(pts, lines=cells.ravel()).tube(radius=r, n_sides=16)
-    if fam == "planes" and "x2" in d:
-        tu = _lengths(d["T2"] if short else None, m, far)
-        tv = _lengths(d["T1"] if short else None, m, far)
-        return grid_surface(_parallelograms(d["x2"], d["w2"], d["w1"], tu, tv))
-    if fam == "planes" and "origin" in d:
-        tu = _lengths(d["Tu"] if short else None, m, far)
-        tv = _lengths(d["Tv"] if short else None, m, far)
-        return grid_surface(_parallelograms(d["origin"], d["w3"], d["v"], tu, tv))
-    if fam == "spheres":
-        return grid_surface(_sphere_grid(d["x1"], d["T1"]))
-    if fam == "cones":
-        return grid_surface(_cone_grid(d["x1"], d["w2"], d["c1"],
-                                       _lengths(d["T1"] if short else None, m, far)))
-    if fam == "cylinders":
-        e1, e2 = _frame(d["w2"])
-        ph = np.linspace(0, 2 * np.pi, 36)
-        ring = (d["T1"] * d["s1"])[:, None, None] * (np.cos(ph)[None, :, None] * e1[:, None]
-                                                    + np.sin(ph)[None, :, None] * e2[:, None])
-        start = d["x2"] + (d["T1"] * d["c1"])[:, None] * d["w2"]
-        h = _lengths(d["T2"] if short else None, m, far)
-        t = np.stack([np.zeros(m), h], axis=1)
-        P = (start[:, None, None, :] + t[:, :, None, None] * d["w2"][:, None, None, :]
-             + ring[:, None, :, :])
-        return grid_surface(P)
-    if fam == "disks":
-        return grid_surface(_half_disk_grid(d["x1"], d["w2"], d["e_r"],
-                                            _lengths(d["T1"] if short else None, m, far),
-                                            np.full(m, np.pi)))
-    if fam == "revolutions":
-        ph = np.linspace(0, 2 * np.pi, 36)
-        A = d["A3"] / np.linalg.norm(d["A3"], axis=1, keepdims=True)
-        if name.startswith("hyperboloid"):
-            t1 = _lengths(d["T1"] if short else None, m, far)
-            v0 = d["T2"][:, None] * d["w2"]
-            v1 = v0 + t1[:, None] * d["w1"]
-            P = np.stack([_rotate(v0, A, ph), _rotate(v1, A, ph)], axis=1)
-        elif name.startswith("torus"):
-            th = np.linspace(0, np.pi, 16)
-            merid = (d["T2"][:, None, None] * d["w2"][:, None]
-                     + d["T1"][:, None, None] * (np.cos(th)[None, :, None] * d["w2"][:, None]
-                                                 + np.sin(th)[None, :, None] * d["e_r"][:, None]))
-            P = np.stack([_rotate(merid[:, i], A, ph) for i in range(th.size)], axis=1)
-        else:
-            return None
-        return grid_surface(d["x2"][:, None, None, :] + P)
-    if fam == "single":
-        one = d.get("one_sided", np.zeros(m, dtype=bool)).astype(bool)
-        if name == "ss-sphere":
-            return grid_surface(_sphere_grid(d["x1"], d["T1"], d["axis"],
-                                             np.where(one, 0.5 * np.pi, np.pi)))
-        if name.startswith("ss-cone"):
-            return grid_surface(_cone_grid(d["x1"], d["w2"], d["c1"],
-                                           _lengths(d["T1"] if short else None, m, far)))
-        if name.startswith("ss-disk"):
-            return grid_surface(_half_disk_grid(d["x1"], d["axis"], d["er"],
-                                                _lengths(d["T1"] if short else None, m, far),
-                                                np.where(one, 0.5 * np.pi, np.pi)))
-        if name.startswith("ss-plane"):
-            tri = d["tri"].astype(bool)
-            if name == "ss-plane-uv":
-                a = np.linspace(0, 1, 2)
-                P = (d["org"][:, None, None, :] + a[None, :, None, None] * d["A"][:, None, None]
-                     + (a[None, None, :, None] * np.where(tri[:, None, None, None],
-                                                          1.0 - a[None, :, None, None], 1.0))
-                     * d["B"][:, None, None])
-                return grid_surface(P)
-            tb = _lengths(d["T1"] if short else None, m, far)
-            return grid_surface(_parallelograms(d["org"], d["A"], d["B"], d["amax"], tb))
-        return None
-    return None
+        return pv.PolyData(ext[:, 0]).glyph(geom=pv.Sphere(radius=r, theta_resolution=14,
+                                                           phi_resolution=14),
+                                            scale=False, orient=False), True
+    if ext.shape[0] == 0:
+        return pv.PolyData(), False
+    k = ext.shape[0]
+    cells = np.column_stack([np.full(k, 2), 2 * np.arange(k), 2 * np.arange(k) + 1])
+    r = radius if radius > 0 else 0.3 * scale_of(scene)
+    # Beams outside the box are left out: the tubes' cells are not one set per primitive.
+    return pv.PolyData(ext.reshape(-1, 3), lines=cells.ravel()).tube(radius=r, n_sides=16), False
 
 
 def _bounds_boxes(prims, idx) -> pv.PolyData:
@@ -348,17 +200,13 @@ def primitive_mesh(tech, prims, idx, scene, radius: float):
 
 def _primitive_mesh(tech, prims, idx: np.ndarray, scene, radius: float):
     try:
-        mesh = _draw_family(tech, prims, idx, scene, radius)
-    except (KeyError, IndexError, ValueError):
-        mesh = None
-    if mesh is None:
+        mesh, per_primitive = _family_mesh(tech, prims, idx, scene, radius)
+    except (KeyError, IndexError, ValueError, NotImplementedError):
         return _bounds_boxes(prims, idx), "bounds"
     if mesh.n_points == 0:
         return mesh, "surface"
-    # Which primitive each cell belongs to (right click picks it): every family but beams
-    # (whose tubes skip primitives outside the box) draws the same number of cells per
-    # primitive, in order.
-    if tech.family != "beams" and mesh.n_cells % idx.size == 0:
+    # Which primitive each cell belongs to (right click picks it).
+    if per_primitive and mesh.n_cells % idx.size == 0:
         mesh.cell_data[PRIM_ROW] = np.repeat(idx, mesh.n_cells // idx.size)
     clipped = mesh.clip_box(medium_bounds(scene), invert=False)
     if not isinstance(clipped, pv.PolyData):

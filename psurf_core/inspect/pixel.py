@@ -1,11 +1,9 @@
-"""Everything the UI shows for one pixel and one pass, as plain records (numpy only).
+"""One pixel of one pass, every hit recorded: :func:`inspect_pixel` and its :class:`HitTable`.
 
 :func:`inspect_pixel` replays pass ``pass_index`` of a progressive render for a single pixel
 (``render_pass(..., pixels=[p], record=...)``: the same rays, photons and primitives the full
 pass used, see ``render.py``) and flattens what happened into a :class:`HitTable`, one row per
 camera-ray/primitive hit, whose contributions sum to the pixel's value in that pass.
-:func:`reconstruct_hit` gives the full path one hit implies and every MIS member's density on
-it (the paper's Reconstruct stage); :func:`primitive_pixels` the pixels one primitive reaches.
 
 Pixel coordinates are ``(X, Y)``: ``X`` the column from the left, ``Y`` the row from the top.
 
@@ -25,29 +23,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .constants import NEAR_SINGULAR
-from .estimators import Estimator, parse_estimator
-from .geometry import blockers_of
-from .mis import member_densities, weights_from_densities
-from .render import (
-    PHOTON_BATCH,
-    PassRecord,
-    RenderSettings,
-    kernel_radius,
-    pass_generators,
-    render_pass,
-)
-from .scene import Scene
-from .techniques.base import Hits, PassContext, Primitives, Technique, fields_of, take
+from ..constants import NEAR_SINGULAR
+from ..estimators import Estimator, parse_estimator
+from ..geometry import blockers_of
+from ..mis import member_densities, weights_from_densities
+from ..render import PassRecord, RenderSettings, kernel_radius, render_pass
+from ..scene import Scene
+from ..techniques.base import Hits, PassContext, Primitives, Technique, dot, fields_of
 
-__all__ = [
-    "HitTable",
-    "PixelInspection",
-    "inspect_pixel",
-    "member_primitives",
-    "primitive_pixels",
-    "reconstruct_hit",
-]
+__all__ = ["HitTable", "PixelInspection", "inspect_pixel"]
 
 #: Relative tolerance of the "hit table sums to the pixel value" check.
 SUM_RTOL = 1e-9
@@ -192,7 +176,8 @@ class PixelInspection:
 
 
 # --------------------------------------------------------------------------- helpers
-def _estimator(estimator, scene: Scene) -> Estimator:
+def photon_estimator(estimator, scene: Scene) -> Estimator:
+    """``estimator`` parsed against ``scene``; ValueError for the reference (no photons)."""
     est = parse_estimator(estimator, scene) if isinstance(estimator, str) else estimator
     if est.reference:
         raise ValueError("the inspector needs a photon estimator, not 'reference' "
@@ -227,48 +212,17 @@ def _concat_hits(chunks: list) -> Hits:
                 {k: np.concatenate([h.data[k] for h in chunks]) for k in sorted(keys)})
 
 
-def _dot(a, b):
-    return np.einsum("ij,ij->i", a, b)
-
-
 def _scaled_normals(tech: Technique, hits: Hits, prims: Primitives, paths, rays,
                     ctx: PassContext) -> np.ndarray:
-    """(H, 3) scaled normal ``n`` of the swept surface at each hit, by family; NaN rows where
-    the family has no surface (kernels) or its layout is unknown to the inspector."""
-    h = len(hits)
-    nan = np.full((h, 3), np.nan)
-    if h == 0:
-        return nan
-    d, p, hd = fields_of(prims.data), hits.prim, fields_of(hits.data)
+    """(H, 3) scaled normal ``n`` of the swept surface at each hit: the family's own
+    ``scaled_normal`` (:meth:`Technique.hit_normals`); NaN rows where the family sweeps no
+    surface (kernels) or cannot rebuild the hit's path."""
+    if len(hits) == 0:
+        return np.full((0, 3), np.nan)
     try:
-        if hasattr(tech, "scaled_normal") and (tech.compiled is not None
-                                               or getattr(tech, "family", "") == "single"):
-            return np.asarray(tech.scaled_normal(tech.reconstruct(hits, prims, paths, rays, ctx)),
-                              dtype=float)
-        fam = tech.family
-        with np.errstate(invalid="ignore", divide="ignore"):
-            if fam == "planes" and "w1" in d and "x2" in d:
-                return np.cross(d["w1"][p], d["w2"][p])
-            if fam == "planes" and "v" in d and "w3" in d:
-                return np.cross(d["v"][p], d["w3"][p])
-            if fam == "spheres":
-                return (d["T1"][p] ** 2)[:, None] * hd["w1"]
-            if fam == "cones":
-                w1, w2, t1 = hd["w1"], d["w2"][p], hd["t1"]
-                return t1[:, None] * (w2 - _dot(w1, w2)[:, None] * w1)
-            if fam == "cylinders":
-                w1, w2, T1 = hd["w1"], d["w2"][p], d["T1"][p]
-                return T1[:, None] * (_dot(w1, w2)[:, None] * w2 - w1)
-            if fam == "disks":
-                cr = np.cross(hd["w1"], d["w2"][p])
-                return (hd["t1"] / _dot(cr, cr))[:, None] * cr
-            if fam == "revolutions" and hasattr(tech, "_normal"):
-                hit = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-                return np.asarray(tech._normal(hd["w2"], hd["w1"], hd["t1"], d["A3"][p],
-                                               hit - d["x2"][p]), dtype=float)
+        return tech.hit_normals(hits, prims, paths, rays, ctx)
     except (KeyError, NotImplementedError, AttributeError, ValueError, IndexError):
-        return nan
-    return nan
+        return np.full((len(hits), 3), np.nan)
 
 
 def _group_of(est: Estimator) -> dict:
@@ -305,7 +259,7 @@ def inspect_pixel(scene: Scene, estimator, seed: int, pass_index: int, pixel_xy,
     ValueError
         For the reference estimator or a pixel outside the image.
     """
-    est = _estimator(estimator, scene)
+    est = photon_estimator(estimator, scene)
     pix = _pixel_index(scene, pixel_xy)
     blockers = blockers_of(scene)
     rec = PassRecord()
@@ -338,7 +292,7 @@ def inspect_pixel(scene: Scene, estimator, seed: int, pass_index: int, pixel_xy,
         if "n_dot_psi" in fields_of(hits.data):
             ndp = np.asarray(hits.data["n_dot_psi"], dtype=float)
         else:  # techniques that keep no |n . psi| in their hits (single scattering)
-            ndp = np.abs(_dot(normal, rays.d[hits.ray]))
+            ndp = np.abs(dot(normal, rays.d[hits.ray]))
         rows.append(dict(
             technique=np.full(len(hits), name, dtype=object),
             family=np.full(len(hits), tech.family, dtype=object),
@@ -382,200 +336,3 @@ def _table(rows: list) -> HitTable:
         return HitTable(**empty)
     return HitTable(**{n: np.concatenate([r[n] for r in rows], axis=0) for n in names})
 
-
-# --------------------------------------------------------------------------- reconstruct
-_LABELS = ("x3", "x2", "x1", "x0")
-
-
-def reconstruct_hit(inspection: PixelInspection, k: int) -> dict:
-    """The Reconstruct stage for row ``k`` of the hit table.
-
-    Returns
-    -------
-    dict with
-        ``row`` (int), ``technique``, ``family`` (str), ``K`` (int);
-        ``available`` (bool) and ``note`` (str): False for techniques without a
-        reconstruction (kernel baselines);
-        ``record`` : PathRecord of length 1 (None when not available);
-        ``polyline`` : (V, 3) the full path, light -> ... -> ``x0`` -> camera;
-        ``labels`` : V names (``"light"``, ``"x3"``..``"x0"``, ``"camera"``);
-        ``photon_polyline`` : (K, 3) the photon's own sampled vertices ``x_K .. x_1``
-        (what the hit replaced is then visible beside the reconstruction);
-        ``members`` : list of ``(name, Q, weight)``, one per member of the hit's MIS group
-        (the technique alone: weight 1);
-        ``weighting`` : ``"balance"``, ``"power"`` or None.
-    """
-    t = inspection.table
-    if not 0 <= k < len(t):
-        raise IndexError(f"hit {k} does not exist (the table has {len(t)} rows)")
-    name, b, i = str(t.technique[k]), int(t.batch[k]), int(t.index[k])
-    tech = inspection.techniques[name]
-    hits = inspection.hits[(name, b)].select(np.array([i]))
-    prims, paths = inspection.prims[(name, b)], inspection.paths[b]
-    ctx = inspection.context(name)
-    gi = int(t.group[k])
-    group = inspection.groups[gi]
-    K = int(t.K[k])
-    photon = int(t.photon[k])
-    cam = inspection.rays.o[int(t.ray[k])]
-    out = dict(row=k, technique=name, family=str(t.family[k]), K=K, available=False,
-               note="", record=None, members=[], weighting=inspection.estimator.weighting
-               if len(group) > 1 else None)
-    # The photon's own sampled vertices (tracer 0..K-1 are x_K..x_1).
-    out["photon_polyline"] = paths.x[photon, :K].copy()
-    try:
-        rec = tech.reconstruct(hits, prims, paths, inspection.rays, ctx)
-    except NotImplementedError:
-        out["note"] = f"{name} is a kernel estimator: it has no exact path to reconstruct"
-        labels = [f"x{K - j}" for j in range(K)] + ["x0", "camera"]
-        labels[0] += " (light)"
-        out["polyline"] = np.vstack([paths.x[photon, :K], t.point[k], cam])
-        out["labels"] = labels
-        out["members"] = [(name, float("nan"), float(t.mis_weight[k]))]
-        return out
-    out["available"], out["record"] = True, rec
-    # Vertices before x3 are sampled identically by every technique: the photon's own.
-    early = max(K - 3, 0)
-    verts = [paths.x[photon, j] for j in range(early)]
-    labels = [f"x{K - j}" for j in range(early)]
-    for lab in _LABELS:
-        v = getattr(rec, lab)[0]
-        if np.all(np.isfinite(v)):
-            verts.append(v)
-            labels.append(lab)
-    labels[0] += " (light)"
-    verts.append(cam)
-    labels.append("camera")
-    out["polyline"] = np.vstack(verts)
-    out["labels"] = labels
-    if len(group) > 1:
-        q = member_densities(rec, group, ctx)[:, 0]
-        w = weights_from_densities(q[:, None], inspection.estimator.weighting)[:, 0]
-        out["members"] = [(m.name, float(q[j]), float(w[j])) for j, m in enumerate(group)]
-    else:
-        try:
-            q = float(np.abs(tech.density(rec, ctx))[0])
-        except NotImplementedError:
-            q = float("nan")
-        out["members"] = [(name, q, 1.0)]
-    return out
-
-
-def member_primitives(inspection: PixelInspection, recon: dict) -> dict:
-    """The primitive every MIS member sweeps through the path a hit implies.
-
-    The talk's Reconstruct picture: one full path, and every technique's surface through it
-    (whose density ``Q_j`` on that path :func:`reconstruct_hit` gives). The path's vertices
-    (light ``x_K`` .. ``x0``) become a one-photon :class:`~psurf_core.trace.PhotonPaths`
-    (unit weights), and each member's own ``create`` makes its primitives of scatter count
-    ``K`` from it. Every exact member's surface then contains ``x0``; a short (track-length)
-    member's extent is the path's own segment lengths, so ``x0`` lies on its edge.
-
-    Parameters
-    ----------
-    recon : dict
-        :func:`reconstruct_hit` output with ``available`` True.
-
-    Returns
-    -------
-    dict
-        ``member name -> (technique, Primitives, rows)``; rows ``(n,) int`` of primitives
-        with the hit's ``K`` (empty when the member cannot make this path, e.g. a
-        single-scattering technique for ``K >= 2``). Empty for an unavailable reconstruction.
-    """
-    from .trace import PhotonPaths
-
-    if not recon.get("available"):
-        return {}
-    rec = recon["record"]
-    K = int(recon["K"])
-    verts = np.asarray(recon["polyline"], dtype=float)[:-1]  # light x_K .. x0 (no camera)
-    if verts.shape[0] != K + 1:
-        return {}
-    seg = np.diff(verts, axis=0)
-    t = np.linalg.norm(seg, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        w = seg / t[:, None]
-    if not (np.all(np.isfinite(w)) and np.all(t > 0)):
-        return {}
-    x = verts
-    paths = PhotonPaths(
-        n_emitted=1, light=np.asarray(rec.light[:1], dtype=np.int64),
-        light_pmf=np.ones(1), light_uv=np.asarray(rec.uv[:1], dtype=float),
-        tri=np.asarray(rec.tri[:1], dtype=np.int64),
-        light_normal=np.asarray(rec.axis[:1], dtype=float), x=x[None], w=w[None], t=t[None],
-        beta=np.ones((1, K, 3)), alive=np.ones((1, K), dtype=bool),
-        prefix_ok=np.ones((1, K + 1), dtype=bool),
-        clip=np.stack([np.zeros(K), t], axis=1)[None])
-    group = inspection.groups[int(inspection.table.group[int(recon["row"])])]
-    out = {}
-    for tech in group:
-        ctx = inspection.context(tech.name)
-        try:
-            prims = tech.create(paths, ctx)
-        except (IndexError, ValueError):  # a member that needs more of the path than exists
-            out[tech.name] = (tech, None, np.zeros(0, np.int64))
-            continue
-        out[tech.name] = (tech, prims, np.flatnonzero(prims.K == K))
-    return out
-
-
-# --------------------------------------------------------------------------- coverage
-def primitive_pixels(scene: Scene, estimator, seed: int, pass_index: int, technique: str,
-                     prim_id: int, settings: RenderSettings, *, batch: int = 0) -> np.ndarray:
-    """Pixels primitive ``prim_id`` of ``technique`` contributes to in pass ``pass_index``.
-
-    The pass's own jittered camera rays of every pixel are intersected with that one
-    primitive; a pixel counts when some hit has a non-zero Evaluate value (before MIS
-    weights).
-
-    Parameters
-    ----------
-    technique : str
-        A technique name of the estimator (as in the hit table, e.g. ``plane-t1t2-short``).
-    prim_id : int
-        Row of that technique's primitives in photon batch ``batch``.
-
-    Returns
-    -------
-    (H, W) bool
-        Row 0 at the top (index ``[Y, X]``).
-    """
-    from .binning import candidate_pairs
-    from .camera import camera_rays
-    from .trace import trace
-
-    est = _estimator(estimator, scene)
-    techs = {t.name: t for t in est.techniques}
-    if technique not in techs:
-        raise ValueError(f"technique '{technique}' is not part of estimator '{est.spec}' "
-                         f"(members: {', '.join(techs)})")
-    tech = techs[technique]
-    cam = scene.camera
-    blockers = blockers_of(scene)
-    ray_rng, photon_ss = pass_generators(seed, pass_index)
-    rays = camera_rays(scene, settings.spp, ray_rng, blockers=blockers)
-    n_batches = -(-settings.photons // PHOTON_BATCH)
-    if not 0 <= batch < n_batches:
-        raise ValueError(f"batch {batch} does not exist (the pass has {n_batches})")
-    batch_ss = photon_ss.spawn(n_batches)
-    n = min(PHOTON_BATCH, settings.photons - batch * PHOTON_BATCH)
-    paths = trace(scene, n, np.random.default_rng(batch_ss[batch]), blockers=blockers)
-    ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, pass_index),
-                      pass_index, settings.max_pairs)
-    prims = tech.create(paths, ctx)
-    if not 0 <= prim_id < len(prims):
-        raise ValueError(f"primitive {prim_id} does not exist ({technique} has {len(prims)} "
-                         f"in batch {batch})")
-    sel = np.array([prim_id])
-    one = Primitives(prims.technique, prims.photon[sel], prims.K[sel], prims.lo[sel],
-                     prims.hi[sel], take(prims.data, sel))
-    mask = np.zeros(cam.n_pixels, dtype=bool)
-    for ray, prim in candidate_pairs(cam, rays, one.lo, one.hi, settings.max_pairs):
-        hits = tech.intersect(one, rays, ray, prim, ctx)
-        if len(hits) == 0:
-            continue
-        val = tech.evaluate(hits, one, paths, rays, ctx)
-        good = np.any(val != 0.0, axis=1)
-        mask[rays.pixel[hits.ray[good]]] = True
-    return mask.reshape(cam.height, cam.width)
