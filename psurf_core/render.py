@@ -148,9 +148,12 @@ def photon_pass(
                 prims = tech.create(mine, ctx)
                 if record is not None:
                     record.prims[(tech.name, b)] = prims
-                for hits, raw, w in _chunks(tech, prims, paths, rays, ctx, mis, emit, out):
+                chunks, compiled = _chunks(tech, prims, paths, rays, ctx, mis, emit, out)
+                for hits, raw, w in chunks:
                     if len(hits) == 0:
                         continue
+                    # The compiled walker added final values to ``out`` itself.
+                    added = compiled and (mis is None or w is not None)
                     val = raw
                     if mis is not None:
                         if w is None:
@@ -161,7 +164,8 @@ def photon_pass(
                         tally(tech, hits, prims, rays, raw, val)
                     if record is not None:
                         record.hits.setdefault((tech.name, b), []).append((hits, val))
-                    _accumulate(out, hits.ray, val)
+                    if not added:
+                        _accumulate(out, hits.ray, val)
     return out
 
 
@@ -174,17 +178,20 @@ def _photons_used(tech: Technique, n: int) -> int:
 
 
 def _chunks(tech, prims, paths, rays, ctx, mis, emit, out):
-    """``(Hits, unweighted values, MIS weights or None)`` of ``tech``'s primitives: its
-    compiled walker where it has one (:func:`~psurf_core.kernels.fused.fused_pass`, which
-    without ``emit`` adds to ``out`` itself and yields nothing), else the stages."""
-    run = fused_pass(tech, prims, paths, rays, ctx, mis, emit=emit, out=out)
+    """``(chunks, compiled)``: ``(Hits, unweighted values, MIS weights or None)`` of
+    ``tech``'s primitives from its compiled walker where it has one
+    (:func:`~psurf_core.kernels.fused.fused_pass`, which adds the final values to ``out``
+    itself, in the same order whether it emits the hits or not, so reading them changes no
+    bit of the image), else from the stages (``compiled`` False: the caller adds them)."""
+    run = fused_pass(tech, prims, paths, rays, ctx, mis, emit=emit, out=out,
+                     add_emitted=True)
     if run is not None:
-        return run
+        return run, True
     legacy = getattr(tech, "fused_pass", None)
     chunks = legacy(prims, paths, rays, ctx) if legacy is not None else None
     if chunks is None:
         chunks = stage_chunks(tech, prims, paths, rays, ctx)
-    return ((h, v, None) for h, v in chunks)
+    return ((h, v, None) for h, v in chunks), False
 
 
 def stage_chunks(tech: Technique, prims, paths, rays: Rays, ctx: PassContext):

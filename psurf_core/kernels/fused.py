@@ -77,7 +77,8 @@ class MisSet:
 
 
 def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: bool = True,
-               out: np.ndarray | None = None, stats: dict | None = None):
+               out: np.ndarray | None = None, stats: dict | None = None,
+               add_emitted: bool = False):
     """Find, evaluate and weight every hit of ``prims`` (``tech``'s primitives) with
     ``rays`` in compiled code, or return None where it does not apply (the technique has no
     compiled declaration; 64 or fewer pixels see medium, binning's per-pixel branch; the
@@ -90,6 +91,10 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
     emit : bool
         Yield the hits (see below). Without it, ``out`` (R, 3) receives the weighted
         per-photon sums per ray.
+    add_emitted : bool
+        With ``emit`` and ``out``: also add the emitted hits' final values (weighted, or a
+        technique alone) to ``out``, in the order the walker adds them without ``emit``, so
+        that a pass that reads its hits gives the bits of one that does not.
     stats : dict, optional
         Receives ``candidates`` (ray-primitive pairs walked) and ``hits`` (hits evaluated,
         blocked ones included), added to what it holds (``benchmarks/``).
@@ -118,6 +123,7 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
     run = _Run(tech, fam, walker(fam, w, key), prims, paths, rays, ctx, blk, cs, rt, rid,
                shares, weighted=w is not None, emit=emit or (w is None and mis is not None))
     run.stats = stats
+    run.add_emitted = add_emitted and (w is not None or mis is None)
     return _kept(run.chunks(out))
 
 
@@ -137,6 +143,7 @@ class _Run:
         self.prims, self.paths, self.rays, self.ctx = prims, paths, rays, ctx
         self.cs, self.rid, self.emit = cs, rid, emit
         self.weighted = weighted  # the walker computes the MIS weights
+        self.add_emitted = False  # see fused_pass
         c = np.ascontiguousarray
         lights = _photon_lights(paths, ctx.scene)
         # The walker's constant arguments after the span range (its signature, in order).
@@ -230,11 +237,18 @@ class _Run:
         ray, prim, s, hit, val, wts, st = cols
         hits = Hits(ray, prim, s, hit.view(np.float64).view(
             dtype_of(self.fam.hit)).reshape(-1).view(np.recarray))
+        later = (st == DEFER).any(axis=1) if self.emit and self.add_emitted else None
         if res["n_defer"]:
             self.resolve(hits, st, val)
         weights = wts if self.weighted else None
         if self.emit:
             yield hits, val, weights
+            if out is not None and self.add_emitted:
+                # The walker's order without emit: the chunk's undeferred hits, then the
+                # deferred ones (np.add.at adds one row after another, as it does).
+                final = val * (wts[:, None] if self.weighted else 1.0)
+                np.add.at(out, ray[~later], final[~later])
+                np.add.at(out, ray[later], final[later])
         else:
             w = wts if self.weighted else 1.0
             np.add.at(out, ray, val * (w[:, None] if self.weighted else w))
