@@ -16,7 +16,8 @@ previous rule, 48 passes) gave such an estimator ~10^4 photons a pass, almost al
 
 :func:`auto_photons` measures all four numbers on pilot passes (after the warm-up that
 compiles the kernels; seeds no render uses; not counted in any budget) and returns ``N*``,
-kept within :data:`PHOTON_RANGE` and so that the budget still holds :data:`MIN_PASSES`.
+kept within :data:`PHOTON_RANGE`, where a pass's photons cost at most :data:`OVERHEAD_CAP`
+times its fixed part, and so that the budget still holds :data:`MIN_PASSES`.
 """
 
 from __future__ import annotations
@@ -36,6 +37,12 @@ MIN_PASSES = 48
 #: Photons of the two pilot pass sizes, and pilot passes of each.
 PILOT_PHOTONS = (128, 1024)
 PILOT_PASSES = 6
+
+#: A pass's photons cost at most this many times its fixed part (see :func:`best_photons`).
+OVERHEAD_CAP = 8.0
+
+#: The fixed part of a pass is taken as at least this (s): a noisy pilot can measure ~0.
+MIN_PASS_SECONDS = 1e-3
 
 #: The range a chosen count is kept in.
 PHOTON_RANGE = (64, 1 << 20)
@@ -58,10 +65,14 @@ def pass_model(sizes, seconds, variances) -> tuple[float, float, float, float]:
 
 
 def best_photons(c0: float, c1: float, vj: float, vp: float, budget: float) -> int:
-    """The pass size minimising ``(Vj + Vp / N) (c0 + c1 N)``, at most what lets ``budget``
-    seconds hold :data:`MIN_PASSES` passes, within :data:`PHOTON_RANGE`."""
-    n_max = (budget / MIN_PASSES - c0) / c1
-    n = n_max if vj <= 0.0 or c0 <= 0.0 else min(math.sqrt(vp * c0 / (vj * c1)), n_max)
+    """The pass size minimising ``(Vj + Vp / N) (c0 + c1 N)``, at most
+    ``OVERHEAD_CAP c0 / c1`` (past it a larger pass gains under ``1 / OVERHEAD_CAP`` however
+    small ``Vj`` is, and a pilot cannot tell a small ``Vj`` from none) and what lets
+    ``budget`` seconds hold :data:`MIN_PASSES` passes, within :data:`PHOTON_RANGE`."""
+    c0 = max(c0, MIN_PASS_SECONDS)
+    n = min((budget / MIN_PASSES - c0) / c1, OVERHEAD_CAP * c0 / c1)
+    if vj > 0.0:
+        n = min(math.sqrt(vp * c0 / (vj * c1)), n)
     return int(min(max(n, PHOTON_RANGE[0]), PHOTON_RANGE[1]))
 
 

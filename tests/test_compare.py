@@ -246,8 +246,7 @@ def test_pass_model_recovers_cost_and_variance_terms():
 
 
 def test_best_photons_minimises_the_equal_time_variance():
-    """``N* = sqrt(Vp c0 / (Vj c1))`` beats its neighbours; without a pixel term the
-    largest size that leaves MIN_PASSES passes in the budget; clipped to PHOTON_RANGE."""
+    """``N* = sqrt(Vp c0 / (Vj c1))`` beats its neighbours; clipped to PHOTON_RANGE."""
     import psurf_core.pass_size as ps
 
     c0, c1, vj, vp = 0.01, 5e-5, 4e-6, 3e-4
@@ -258,9 +257,12 @@ def test_best_photons_minimises_the_equal_time_variance():
         return (vj + vp / m) * (c0 + c1 * m)
 
     assert cost(n) <= min(cost(n // 2), cost(2 * n))
-    budget = 48.0  # 1 s a pass at MIN_PASSES = 48
-    assert ps.best_photons(c0, c1, 0.0, vp, budget) == int((1.0 - c0) / c1)
-    assert ps.best_photons(c0, 1e-12, 0.0, vp, budget) == ps.PHOTON_RANGE[1]
+    # No pixel term: photons up to OVERHEAD_CAP times the fixed part, or what leaves
+    # MIN_PASSES passes in a short budget.
+    assert ps.best_photons(c0, c1, 0.0, vp, 1e6) == int(ps.OVERHEAD_CAP * c0 / c1)
+    budget = 2.4  # 0.05 s a pass at MIN_PASSES = 48
+    assert ps.best_photons(c0, c1, 0.0, vp, budget) == int((0.05 - c0) / c1)
+    assert ps.best_photons(1.0, 1e-12, 0.0, vp, 1e9) == ps.PHOTON_RANGE[1]
     assert ps.best_photons(c0, c1, vj, 1e-300, budget) == ps.PHOTON_RANGE[0]
 
 
