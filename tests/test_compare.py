@@ -261,7 +261,7 @@ def test_best_photons_minimises_the_equal_time_variance():
     # MIN_PASSES passes in a short budget.
     assert ps.best_photons(c0, c1, 0.0, vp, 1e6) == int(ps.OVERHEAD_CAP * c0 / c1)
     budget = 2.4  # 0.05 s a pass at MIN_PASSES = 48
-    assert ps.best_photons(c0, c1, 0.0, vp, budget) == int((0.05 - c0) / c1)
+    assert ps.best_photons(c0, c1, 0.0, vp, budget) == int((budget / ps.MIN_PASSES - c0) / c1)
     assert ps.best_photons(1.0, 1e-12, 0.0, vp, 1e9) == ps.PHOTON_RANGE[1]
     assert ps.best_photons(c0, c1, vj, 1e-300, budget) == ps.PHOTON_RANGE[0]
 
