@@ -125,7 +125,9 @@ def _pass(path, photons=120, width=24, height=18):
     from dataclasses import replace
 
     scene = load_scene(path)
-    scene = replace(scene, camera=replace(scene.camera, width=width, height=height))
+    # From K = 1 whatever the scene renders (the showcase starts at 2): every family has paths.
+    scene = replace(scene, min_scatter=1,
+                    camera=replace(scene.camera, width=width, height=height))
     blockers = blockers_of(scene)
     rays = camera_rays(scene, 1, np.random.default_rng(3), blockers=blockers)
     paths = trace(scene, photons, np.random.default_rng(4), blockers=blockers)
