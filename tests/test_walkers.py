@@ -150,12 +150,18 @@ def test_accumulating_walker_adds_what_it_would_emit(name, spec):
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
 
 
-MIS_SPECS = ["paper-multi", "mis-power:plane-t1t2-short+cone-short+cylinder+plane-t2t3",
-             "mis:planes+cone+cylinder-short", "paper-multi~cone",
-             "paper-multi~plane-t1t2~cylinder", "mis:planes+cone-short@0.3+cylinder@0.5",
+# Sets whose walkers nothing else compiles run in make test-slow (each costs ~15-40 s of
+# numba compilation on a fresh clone).
+_SLOW = pytest.mark.slow
+MIS_SPECS = ["paper-multi",
+             pytest.param("mis-power:plane-t1t2-short+cone-short+cylinder+plane-t2t3",
+                          marks=_SLOW),
+             pytest.param("mis:planes+cone+cylinder-short", marks=_SLOW), "paper-multi~cone",
+             "paper-multi~plane-t1t2~cylinder",
+             pytest.param("mis:planes+cone-short@0.3+cylinder@0.5", marks=_SLOW),
              "mis-power:planes@0.6+cone@0.2", "paper-single", "paper-single~ss-sphere",
-             "mis-power:ss-plane-uv+ss-plane-ut-short+ss-plane-vt+ss-cone-short+ss-disk"
-             "+ss-sphere", "fast-single", "fast-multi"]
+             pytest.param("mis-power:ss-plane-uv+ss-plane-ut-short+ss-plane-vt+ss-cone-short"
+                          "+ss-disk+ss-sphere", marks=_SLOW), "fast-single", "fast-multi"]
 
 
 @pytest.mark.parametrize("spec", MIS_SPECS)
