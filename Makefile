@@ -62,7 +62,7 @@ browser:
 	fi
 
 test: $(STAMP) browser
-	$(VPY) -m pytest -q -m "not slow"
+	$(VPY) -m pytest -q -m "not slow" -n 2 --dist loadfile
 
 test-slow: $(STAMP) browser
 	$(VPY) -m pytest -q -m slow
