@@ -135,7 +135,11 @@ def test_bundled_scenes_exist():
 def test_bundled_scene_loads(path):
     s = load_scene(path)
     assert s.path == str(path)
-    assert (s.camera.width, s.camera.height) == (64, 48)
+    # 64x48 (fast tests and studies), but the lecture showcase: >= 160x120 (issue 13)
+    if path.name == "showcase.toml":
+        assert s.camera.width >= 160 and s.camera.height >= 120
+    else:
+        assert (s.camera.width, s.camera.height) == (64, 48)
     for arr in (s.camera.position, s.camera.look_at, s.camera.up,
                 s.medium.bounds_min, s.medium.bounds_max):
         assert arr.dtype == np.float64 and arr.shape == (3,)
