@@ -29,7 +29,7 @@ $(STAMP): pyproject.toml
 	$(VPY) -m pip install -q -e ".[dev]"
 	touch $(STAMP)
 
-# The showcase comparison (scenes/showcase.toml, planes vs paper-multi at equal time): the
+# The showcase comparison (scenes/showcase.toml, planes vs fast-multi at equal time): the
 # window where a display exists, else out/comparison.png, out/convergence.gif, out/app_*.png.
 demo: $(STAMP)
 	$(VPY) app.py demo

@@ -49,7 +49,7 @@ _ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__
 #: The showcase: the scene, the comparison (the baseline first: ratios are relative to it),
 #: the seconds each estimator gets, photons per pass, the pixel the stages inspect.
 DEMO_SCENE = os.path.join(_ROOT, "scenes", "showcase.toml")
-DEMO_ESTIMATORS = ("planes", "paper-multi")
+DEMO_ESTIMATORS = ("planes", "fast-multi")
 DEMO_SECONDS = 10.0
 DEMO_PHOTONS = 1000
 DEMO_OUT = "out"
