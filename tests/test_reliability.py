@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tiny_scene import TINY
 
 from psurf_core import reliability as rl
 from psurf_core.accumulate import Welford
@@ -29,28 +30,6 @@ from psurf_core.study import compare, load_reference, write_outputs
 ROOT = Path(__file__).resolve().parent.parent
 SHAPE = (3, 4, 3)
 
-TINY = """
-[camera]
-position   = [0.0, 0.0, -4.0]
-look_at    = [0.0, 0.0, 0.0]
-up         = [0.0, 1.0, 0.0]
-fov_y      = 40.0
-resolution = [16, 12]
-
-[medium]
-bounds_min = [-1.0, -1.0, -1.0]
-bounds_max = [ 1.0,  1.0,  1.0]
-sigma_s = 0.8
-sigma_a = 0.2
-phase   = { type = "isotropic" }
-
-[[lights]]
-type = "area"
-corner   = [-0.3, 0.95, -0.3]
-edge_u   = [0.6, 0.0, 0.0]
-edge_v   = [0.0, 0.0, 0.6]
-radiance = [3.0, 3.0, 3.0]
-"""
 
 
 def _fed(xs, tails=True) -> Welford:
