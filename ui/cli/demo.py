@@ -30,6 +30,7 @@ import textwrap
 
 from .common import (
     CliError,
+    add_resolution_flag,
     load_reference,
     nonneg_int,
     note,
@@ -39,7 +40,6 @@ from .common import (
     png_writer,
     positive_float,
     positive_int,
-    resolution,
     with_resolution,
     write_all,
 )
@@ -90,8 +90,7 @@ def add_demo_parser(sub) -> argparse.ArgumentParser:
     d.add_argument("--pixel", default=None, type=pixel, metavar="X,Y",
                    help="the pixel the stages inspect (X column from the left, Y row from "
                         "the top; default the centre)")
-    d.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
-                   help="render at W x H pixels instead of the scene's resolution")
+    add_resolution_flag(d)
     d.add_argument("--time", dest="seconds", type=positive_float, default=DEMO_SECONDS,
                    metavar="SECONDS",
                    help=f"headless: seconds per estimator (equal time; default {DEMO_SECONDS:g})")
