@@ -15,6 +15,7 @@ import sys
 import numpy as np
 import pytest
 
+from psurf_core.kernels.buffers import HitBuffers
 from psurf_core.memory_release import release_free_memory, release_pages
 
 pytestmark = pytest.mark.skipif(
@@ -64,6 +65,28 @@ def test_release_pages_never_touches_a_neighbours_page():
     res = resident(raw)
     assert res[0] and res[7] and not res[1:7].any()
     assert (raw[:PAGE] == 1).all() and (raw[7 * PAGE:] == 1).all()
+
+
+def test_hit_buffers_keep_resident_only_what_the_lease_in_hand_needs():
+    """A large lease, written, then a small one from the same storage: the storage's pages
+    past the small need are no longer resident (before, they stayed until the run ended, and
+    each rarer, larger pass raised that mark)."""
+    pool = HitBuffers()
+    fields = ((np.float64, 3),)
+    big = pool.take("k", fields, 200_000)  # 4.8 MB
+    big[0][:] = 1.0
+    storage = pool.storage["k"][0]
+    assert resident(storage).sum() * PAGE >= 4_800_000
+    del big
+    small = pool.take("k", fields, 1000)  # 24 kB, the same storage
+    assert pool.storage["k"][0] is storage
+    assert small[0].__array_interface__["data"][0] == storage.ctypes.data
+    assert resident(storage).sum() * PAGE <= 24_000 + 2 * PAGE
+    small[0][:] = 2.0
+    del small
+    again = pool.take("k", fields, 200_000)  # the large need again: its pages come back
+    again[0][:] = 3.0
+    assert (again[0] == 3.0).all()
 
 
 def test_release_free_memory_runs():

@@ -15,6 +15,8 @@ import weakref
 
 import numpy as np
 
+from ..memory_release import release_pages
+
 
 class _Storage(np.ndarray):
     """Memory of :class:`HitBuffers`. Its own type matters: numpy collapses a view's
@@ -43,6 +45,7 @@ class HitBuffers(threading.local):
                 store[i] = _Storage(shape=(need + need // 4,), dtype=np.uint8)
             lease = store[i].view(np.ndarray)
             leases[i] = weakref.ref(lease)
+            release_pages(store[i], need)  # resident: this need, not the largest so far
             return _split(lease, fields, rows)
         return _split(np.empty(need, np.uint8), fields, rows)
 
