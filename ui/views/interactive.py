@@ -25,10 +25,12 @@ from .footer import Controls
 from .interactive_params import EstimatorControls, MediumControls, Pointer, Recorder
 from .layout import next_focus
 from .panel_modes import MODE_HELP, next_mode
-from .script import SCRIPT_ENV, SIZE_ENV, play_step
+from .script import SCRIPT_ENV, SIZE_ENV, launch_time, play_step
 from .stepper import DEFAULT_PHOTONS, DEFAULT_SIZE
 from .window import (
     CELL_3D,
+    CELL_PANEL,
+    CELL_TITLE,
     HELP,
     ViewState,
     accept_results,
@@ -51,23 +53,35 @@ __all__ = ["App", "SCRIPT_ENV", "SIZE_ENV", "run"]
 def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: int = 0,
         pixel_xy=None, photons: int = DEFAULT_PHOTONS, size=DEFAULT_SIZE,
         workers: int = 1, reference: str | None = None, resolution=None,
-        inspect=None) -> None:
+        inspect=None, scene=None, prog=None, inspector=None) -> None:
     """Open the interactive window on ``scene_path`` (blocks until it is closed).
 
     ``estimators`` (specs) are rendered side by side at equal time in a background process
     (default: ``[estimator]``); the stages inspect ``inspect`` (default: the first MIS set).
     ``reference`` (an ``app.py render`` .npz of the scene) adds relMSE under each render;
-    ``resolution`` ``(W, H)`` overrides the scene's.
+    ``resolution`` ``(W, H)`` overrides the scene's. ``scene`` (loaded, e.g. with another
+    scatter range), ``prog`` and ``inspector`` (background processes started before this
+    module was imported, :func:`ui.cli.demo.start_background`) replace loading and starting
+    them here.
 
     With :data:`ui.views.script.SCRIPT_ENV` set, its steps are played through the window's
     own event path (synthetic key presses and mouse clicks), one per timer tick, and ``quit``
     closes it.
     """
-    state = build_state(scene_path, estimator, seed, pixel_xy, photons, render_passes=False,
-                        estimators=estimators, inspect=inspect, resolution=resolution,
-                        inspector_workers=1)
-    state.reference = load_reference_image(reference, state.scene)
-    attach_progressive(state, workers=workers)
+    try:
+        state = build_state(scene_path, estimator, seed, pixel_xy, photons,
+                            render_passes=False, estimators=estimators, inspect=inspect,
+                            resolution=resolution, inspector_workers=1, scene=scene,
+                            inspector=inspector)
+        state.reference = load_reference_image(reference, state.scene)
+        # Breakdowns (per technique, per K) double a pass's cost: only while a mode shows
+        # them (``next_mode``).
+        attach_progressive(state, workers=workers, prog=prog, breakdown=False)
+    except BaseException:  # bad input: the processes started for the window stop too
+        for started in (prog, inspector):
+            if started is not None:
+                started.close()
+        raise
     if os.environ.get(SIZE_ENV):
         size = tuple(int(v) for v in os.environ[SIZE_ENV].split(","))
     plotter = make_plotter(size)
@@ -115,6 +129,8 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
         self._busy_shown = 0.0
         self._t0 = time.perf_counter()
         self.scripted, self._said = False, ""
+        self._launched = launch_time()  # None: no time stamps printed
+        self._milestones: set = set()
 
     @property
     def members(self) -> tuple:
@@ -163,7 +179,12 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
         # image panel does not also rotate or pan; elsewhere the event goes on unchanged.
         self._tags["left"] = ii.AddObserver("LeftButtonPressEvent", self._on_left, 10.0)
         self._tags["right"] = ii.AddObserver("RightButtonPressEvent", self._on_right, 10.0)
-        p.add_timer_event(max_steps=10**9, duration=self.TICK_MS, callback=self.tick)
+        # The timer calls tick() and nothing else: pyvista's add_timer_event renders the whole
+        # window after every callback (the 3D view too: tens to hundreds of milliseconds in
+        # software OpenGL, five times a second, when the tick itself drew nothing or only the
+        # image panels). A tick renders what it changed itself.
+        self._tags["timer"] = ii.AddObserver("TimerEvent", self._on_timer)
+        p.iren.create_timer(self.TICK_MS, repeating=True)
 
     def _actions(self) -> dict:
         return {"previous": self.previous, "next": self.next, "play": self.toggle_play,
@@ -183,6 +204,9 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
     def _on_left(self, obj, _event) -> None:
         if self.click(obj.GetEventPosition()) in ("button", "pixel"):
             obj.GetCommand(self._tags["left"]).SetAbortFlag(1)
+
+    def _on_timer(self, _obj, _event) -> None:
+        self.tick()
 
     def _on_right(self, obj, _event) -> None:
         if self.pick_primitive(obj.GetEventPosition()) is not None:
@@ -211,6 +235,25 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
         finally:
             self.p.suppress_rendering = held
         self.p.render()
+        self._stamp()
+
+    def _stamp(self) -> None:
+        """With :data:`ui.views.script.TIMES_ENV` set, print when the window first showed
+        itself, a render, every estimator's render and the stage's inspection (seconds since
+        the launch; ``benchmarks/ui_frames.py --first-picture`` reads them)."""
+        if self._launched is None:
+            return
+        s = self.s
+        passes = s.prog.passes if s.prog is not None else [s.acc.n]
+        now = {"window": self._gl_checked or self.p.iren is None,
+               "first-pass": any(passes), "all-passes": all(passes),
+               "inspection": s.inspection is not None}
+        if not now["window"]:
+            return
+        for name, reached in now.items():
+            if reached and name not in self._milestones:
+                self._milestones.add(name)
+                print(f"window: time {name} {time.time() - self._launched:.3f} s", flush=True)
 
     # ---------------------------------------------------------------- stages
     def next(self) -> None:
@@ -336,6 +379,7 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
             s.message = "panel modes need the progressive renderer (the window)"
         else:
             s.mode = next_mode(s.mode)
+            s.prog.set_breakdown(s.mode != "render")
             s.message = f"panels: {s.mode}: {MODE_HELP[s.mode]}"
         self.redraw()
 
@@ -375,6 +419,7 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
                 # responsive without it. Screenshots keep it: they are figures, not frames.
                 self.p.ren_win.SetMultiSamples(0)
                 self.p.render()
+            self._stamp()
         if tuple(self.p.window_size) != self._size:  # resized: lay everything out again
             self._size = tuple(self.p.window_size)
             self.redraw()
@@ -389,13 +434,8 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
             self.apply_params(params)
             return
         s = self.s
-        if accept_results(s):  # a new inspection (or coverage): the stage is drawn anew
-            self.redraw()
-        elif s.inspector is not None and s.inspector.busy("pixel") is not None:
-            now = time.monotonic()
-            if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
-                self._busy_shown = now
-                self._frame()
+        stage_new = accept_results(s)  # a new inspection (or coverage): the stage anew
+        got = 0
         if s.prog is not None:
             # Non-blocking: merges what the worker finished (at most POLL_BUDGET seconds).
             got = s.prog.poll()
@@ -403,16 +443,27 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
             if notes:
                 s.message = notes[-1]
             if got or notes:
+                got = 1
                 s.acc = s.prog.runs[s.inspected].acc
                 if s.prog.errors:
                     s.message = f"render error: {s.prog.errors[-1].splitlines()[-1]}"
+        elif s.playing:
+            s.acc.add(render_pass(s.scene, s.estimator, s.acc.n, s.seed, s.settings))
+            s.message = f"playing: {s.acc.n} passes"
+            got = 1
+        # One render per tick: a new stage redraws everything (with the passes merged above),
+        # new passes only the image panels and the stage text.
+        if stage_new:
+            self.redraw()
+            if got:
+                self._record_frame()
+        elif got:
+            self._frame()
+        elif s.inspector is not None and s.inspector.busy("pixel") is not None:
+            now = time.monotonic()
+            if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
+                self._busy_shown = now
                 self._frame()
-            return
-        if not s.playing:
-            return
-        s.acc.add(render_pass(s.scene, s.estimator, s.acc.n, s.seed, s.settings))
-        s.message = f"playing: {s.acc.n} passes"
-        self._frame()
 
     def _frame(self) -> None:
         """Redraw the image panels and the stage panel (the 3D view and its camera stay)."""
@@ -427,15 +478,26 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
             self.redraw()
             self._record_frame()
             return
-        # Only the image panels and the stage text changed. The 3D view is the costliest part
-        # of a frame (tens to hundreds of ms in software OpenGL, measured by
-        # benchmarks/ui_frames.py), so it keeps last frame's pixels: VTK renders into its own
-        # framebuffer, and a renderer that is not drawn leaves its viewport as it was. Any
-        # other render (camera moves, stage changes, resizes) draws everything again.
-        view3d = self.p.renderers[self.p.renderers.loc_to_index(CELL_3D)]
-        view3d.SetDraw(False)
+        # Only the image panels and the stage text changed: only their renderers are drawn.
+        # The 3D view is the costliest part of a frame (tens to hundreds of ms in software
+        # OpenGL, measured by benchmarks/ui_frames.py), the footer's and the title's text
+        # actors cost too, so they keep last frame's pixels: VTK renders into its own
+        # framebuffer, and a renderer that is not drawn leaves its viewport as it was (the
+        # layout's parts never overlap). Any other render (camera moves, stage changes,
+        # resizes) draws everything again.
+        p = self.p
+        skip = [p.renderers[p.renderers.loc_to_index(CELL_3D)],
+                p.renderers[p.renderers.loc_to_index(CELL_TITLE)]]
+        if not self.s.panel_changed:
+            skip.append(p.renderers[p.renderers.loc_to_index(CELL_PANEL)])
+        if self.controls is not None and not self.s.show_help:
+            skip.append(self.controls.overlay)  # the help box lies over the other parts
+        for ren in skip:
+            ren.SetDraw(False)
         try:
-            self.p.render()
+            p.render()
         finally:
-            view3d.SetDraw(True)
+            for ren in skip:
+                ren.SetDraw(True)
+        self._stamp()
         self._record_frame()

@@ -22,12 +22,29 @@ import os
 import signal
 import time
 
-__all__ = ["SCRIPT_ENV", "SIZE_ENV", "play_step"]
+__all__ = ["SCRIPT_ENV", "SIZE_ENV", "TIMES_ENV", "launch_time", "play_step"]
 
 #: Environment variable with a script for the window (see the module docstring).
 SCRIPT_ENV = "PSURF_WINDOW_SCRIPT"
 #: Environment variable ``W,H`` overriding the window size (a quicker scripted test).
 SIZE_ENV = "PSURF_WINDOW_SIZE"
+#: Environment variable: the launch time (``time.time()`` seconds, as the launching program
+#: read it; any other value: the window's own start). When set, the window prints
+#: ``window: time <milestone> <seconds since the launch> s`` the first time it has drawn
+#: itself (``window``), a render (``first-pass``), every estimator's render
+#: (``all-passes``) and the stage's inspection (``inspection``).
+TIMES_ENV = "PSURF_WINDOW_TIMES"
+
+
+def launch_time() -> float | None:
+    """The launch time :data:`TIMES_ENV` gives (None when it is not set)."""
+    text = os.environ.get(TIMES_ENV)
+    if not text:
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return time.time()
 
 
 def _status(app) -> str:
