@@ -141,12 +141,16 @@ def _window(args, msaa: bool) -> dict:
             time.sleep(max(0.0, args.period - dt / 1000.0))
         passes = dict(zip(specs, state.prog.passes, strict=True))
         inspected = state.estimator.spec
+        # VTK falls back to an off-screen EGL window when it cannot talk to the X server
+        # ("bad X server connection", seen under heavy load): say which one was measured.
+        window_class = type(plotter.ren_win).__name__
     finally:
         app.close()
         plotter.close()
     return {**_stats(frames), "ticks": _stats(ticks), "inspection_frames": _stats(insp),
             "cpu_ms": {k: _stats(v) for k, v in cpu.items()},
             "keys_ms": keys, "passes": passes, "inspected": inspected,
+            "render_window": window_class,
             "load_average_after": list(os.getloadavg())}
 
 
@@ -331,7 +335,8 @@ def main(argv=None) -> int:
             row("  ticks, CPU ms", c["cpu_ms"]["ticks"])
             print("  keys (full redraws): " + "; ".join(
                 f"{k}: " + ", ".join(f"{v:.0f}ms" for v in vs)
-                for k, vs in c["keys_ms"].items()) + f"  [inspecting {c['inspected']}]")
+                for k, vs in c["keys_ms"].items()) + f"  [inspecting {c['inspected']}; "
+                f"{c['render_window']}]")
     print(f"wrote {args.out}")
     return 0
 

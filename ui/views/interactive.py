@@ -417,8 +417,8 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
                 # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every
                 # full render ~3-5x dearer (benchmarks/ui_frames.py); the window stays
                 # responsive without it. Screenshots keep it: they are figures, not frames.
+                # (The next render goes without it; the picture shown stays as it is.)
                 self.p.ren_win.SetMultiSamples(0)
-                self.p.render()
             self._stamp()
         if tuple(self.p.window_size) != self._size:  # resized: lay everything out again
             self._size = tuple(self.p.window_size)

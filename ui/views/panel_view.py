@@ -267,12 +267,17 @@ class PanelView:
         # in-place update: values, ranges, texts
         parts["header"].SetInput(header)
         parts["header"].GetTextProperty().SetFontSize(header_size)
-        for tile, (img, _actor, text), (title, tsize) in zip(area.tiles, parts["tiles"], fitted,
-                                                             strict=True):
-            text.SetInput(title)
+        drawn = parts.setdefault("keys", [None] * len(area.tiles))
+        for i, (tile, (img, _actor, text), (title, tsize)) in enumerate(
+                zip(area.tiles, parts["tiles"], fitted, strict=True)):
+            if text.GetInput() != title:  # a changed text is rasterized again: only then
+                text.SetInput(title)
             text.GetTextProperty().SetFontSize(tsize)
+            if tile.key is not None and drawn[i] == tile.key:
+                continue  # the same picture: no new texture
             img.point_data["rgb"][:] = tile_rgb(tile)[::-1].reshape(h * w, 3)
             img.Modified()
+            drawn[i] = tile.key
         if parts["bar"] is not None and area.bar is not None:
             lo, hi = next(t.clim for t in area.tiles if t.values is not None)
             keyed = parts["bar_actor"]
