@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pv = pytest.importorskip("pyvista")
@@ -163,3 +164,20 @@ def test_lecture_states_that_compare_share_one_variance_range():
     pair = [s for s in STATES if s.tutorial == 7]
     assert len(pair) == 2 and pair[0].var_clim is not None
     assert pair[0].var_clim == pair[1].var_clim
+
+
+def test_the_headers_say_equal_time_while_an_estimator_waits_for_its_first_pass():
+    """Issue 12's check under Xvfb: at 30 s paper-multi (no pass yet) made the window's
+    headers read "renders at equal passes" and "Var = variance x passes"."""
+    from psurf_core.accumulate import Welford
+    from ui.views.panel_modes import Entry, mode_areas
+
+    done, waiting = Welford.empty((4, 5, 3)), Welford.empty((4, 5, 3))
+    for v in (1.0, 2.0, 4.0):
+        done.add(np.full((4, 5, 3), v))
+    areas = mode_areas([Entry("planes", done, 2.5),
+                        Entry("paper-multi", waiting, 0.0, note="compiling kernels")], "render")
+    assert "equal time" in areas[0].header and "x time" in areas[1].header
+    assert "compiling kernels" in areas[0].tiles[1].title
+    untimed = mode_areas([Entry("planes", done, 0.0), Entry("b", done, 0.0)], "render")
+    assert "equal passes" in untimed[0].header  # screenshots: every run 0 s
