@@ -212,6 +212,8 @@ def _launch(root: str, args, timeout: float = 300.0) -> dict:
             parts = line.split()
             if line.startswith("window: time ") and len(parts) >= 4:
                 times[parts[2]] = float(parts[3])
+                if len(parts) >= 7 and parts[5] == "cpu":  # the window's own CPU seconds
+                    times[f"{parts[2]}-cpu"] = float(parts[6])
             elif line.startswith("window: quit"):
                 times["quit"] = arrived
 

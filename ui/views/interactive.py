@@ -253,7 +253,10 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
         for name, reached in now.items():
             if reached and name not in self._milestones:
                 self._milestones.add(name)
-                print(f"window: time {name} {time.time() - self._launched:.3f} s", flush=True)
+                # and the CPU seconds this process has used (a busy machine stretches the
+                # wall seconds, not these)
+                print(f"window: time {name} {time.time() - self._launched:.3f} s "
+                      f"cpu {time.process_time():.2f} s", flush=True)
 
     # ---------------------------------------------------------------- stages
     def next(self) -> None:
