@@ -72,13 +72,23 @@ def _shot(app) -> np.ndarray:
 
 
 def test_a_new_pass_draws_the_panels_only_and_the_picture_of_a_full_redraw(app):
+    from ui.views.window import panel_text
+
     s = app.s
     count = _drawn(app)
     n = list(s.prog.passes)
+    text = panel_text(s)
+    s.prog._engine.spent[s.inspected] = -1.0  # the next pass is the inspected estimator's
     app.tick()  # one more pass: a frame
-    assert sum(s.prog.passes) == sum(n) + 1
-    assert count["render"] == count["variance"] == 1 and count["panel"] == 1
+    assert s.prog.passes[s.inspected] == n[s.inspected] + 1 and sum(s.prog.passes) == sum(n) + 1
+    assert count["render"] == count["variance"] == 1
+    assert panel_text(s) != text and count["panel"] == 1  # its pass count is in the text
     assert count["3d"] == count["title"] == count["footer"] == 0, count
+    for k in count:
+        count[k] = 0
+    s.prog._engine.spent[s.inspected] = 1e9  # now the other one's: the stage text stays
+    app.tick()
+    assert count["render"] == 1 and count["panel"] == 0, count
     after_frame = _shot(app)  # the screenshot renders again: compare with a full redraw
     app.redraw()
     full = _shot(app)
