@@ -17,33 +17,28 @@ from __future__ import annotations
 import os
 import time
 
-from psurf_core.render import render, render_pass
+from psurf_core.render import render
 
 from . import controls, primitives_view
 from ._vtk import pv
 from .footer import Controls
 from .interactive_params import EstimatorControls, MediumControls, Pointer, Recorder
+from .interactive_timer import Ticker
 from .layout import next_focus
 from .panel_modes import MODE_HELP, next_mode
-from .script import SCRIPT_ENV, SIZE_ENV, launch_time, play_step
+from .script import SCRIPT_ENV, SIZE_ENV, launch_time
 from .stepper import DEFAULT_PHOTONS, DEFAULT_SIZE
 from .window import (
-    CELL_3D,
-    CELL_PANEL,
-    CELL_TITLE,
     HELP,
     ViewState,
     accept_results,
     attach_progressive,
     build_state,
     compose,
-    compose_images,
-    compose_panel,
     load_reference_image,
     make_plotter,
     panel_specs,
     reinspect,
-    software_opengl,
     update_coverage,
 )
 
@@ -97,7 +92,7 @@ def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: in
         app.close()
 
 
-class App(Pointer, EstimatorControls, MediumControls, Recorder):
+class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
     """Key, mouse, widget and timer bindings of the interactive window (what a click picks, the
     inspected estimator and its members, the medium / photon controls and the recorder are
     :mod:`ui.views.interactive_params`'s).
@@ -205,9 +200,6 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
         if self.click(obj.GetEventPosition()) in ("button", "pixel"):
             obj.GetCommand(self._tags["left"]).SetAbortFlag(1)
 
-    def _on_timer(self, _obj, _event) -> None:
-        self.tick()
-
     def _on_right(self, obj, _event) -> None:
         if self.pick_primitive(obj.GetEventPosition()) is not None:
             obj.GetCommand(self._tags["right"]).SetAbortFlag(1)
@@ -236,27 +228,6 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
             self.p.suppress_rendering = held
         self.p.render()
         self._stamp()
-
-    def _stamp(self) -> None:
-        """With :data:`ui.views.script.TIMES_ENV` set, print when the window first showed
-        itself, a render, every estimator's render and the stage's inspection (seconds since
-        the launch; ``benchmarks/ui_frames.py --first-picture`` reads them)."""
-        if self._launched is None:
-            return
-        s = self.s
-        passes = s.prog.passes if s.prog is not None else [s.acc.n]
-        now = {"window": self._gl_checked or self.p.iren is None,
-               "first-pass": any(passes), "all-passes": all(passes),
-               "inspection": s.inspection is not None}
-        if not now["window"]:
-            return
-        for name, reached in now.items():
-            if reached and name not in self._milestones:
-                self._milestones.add(name)
-                # and the CPU seconds this process has used (a busy machine stretches the
-                # wall seconds, not these)
-                print(f"window: time {name} {time.time() - self._launched:.3f} s "
-                      f"cpu {time.process_time():.2f} s", flush=True)
 
     # ---------------------------------------------------------------- stages
     def next(self) -> None:
@@ -409,98 +380,3 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
             self.s.inspector.close()
         if self.controls is not None:
             self.controls.close()
-
-    # ---------------------------------------------------------------- timer
-    def tick(self, _step=None) -> None:
-        """The timer: a resize, a script step, a rested parameter change, the inspector's
-        answers and the render worker's passes (never waits for any of them)."""
-        if not self._gl_checked:  # the first tick: the window and its GL context exist now
-            self._gl_checked = True
-            if software_opengl(self.p):
-                # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every
-                # full render ~3-5x dearer (benchmarks/ui_frames.py); the window stays
-                # responsive without it. Screenshots keep it: they are figures, not frames.
-                # (The next render goes without it; the picture shown stays as it is.)
-                self.p.ren_win.SetMultiSamples(0)
-            self._stamp()
-        if tuple(self.p.window_size) != self._size:  # resized: lay everything out again
-            self._size = tuple(self.p.window_size)
-            self.redraw()
-        if self.script:
-            play_step(self, self.script.pop(0))
-            self.scripted = True
-        if self.scripted and self.s.message != self._said:  # a script's log of the status line
-            self._said = self.s.message
-            print(f"window: message: {self._said}", flush=True)
-        params = self.pending.due(self.clock())
-        if params is not None:
-            self.apply_params(params)
-            return
-        s = self.s
-        stage_new = accept_results(s)  # a new inspection (or coverage): the stage anew
-        got = 0
-        if s.prog is not None:
-            # Non-blocking: merges what the worker finished (at most POLL_BUDGET seconds).
-            got = s.prog.poll()
-            notes = s.prog.take_notices()
-            if notes:
-                s.message = notes[-1]
-            if got or notes:
-                got = 1
-                s.acc = s.prog.runs[s.inspected].acc
-                if s.prog.errors:
-                    s.message = f"render error: {s.prog.errors[-1].splitlines()[-1]}"
-        elif s.playing:
-            s.acc.add(render_pass(s.scene, s.estimator, s.acc.n, s.seed, s.settings))
-            s.message = f"playing: {s.acc.n} passes"
-            got = 1
-        # One render per tick: a new stage redraws everything (with the passes merged above),
-        # new passes only the image panels and the stage text.
-        if stage_new:
-            self.redraw()
-            if got:
-                self._record_frame()
-        elif got:
-            self._frame()
-        elif s.inspector is not None and s.inspector.busy("pixel") is not None:
-            now = time.monotonic()
-            if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
-                self._busy_shown = now
-                self._frame()
-
-    def _frame(self) -> None:
-        """Redraw the image panels and the stage panel (the 3D view and its camera stay)."""
-        held = self.p.suppress_rendering
-        self.p.suppress_rendering = True
-        try:
-            compose_images(self.p, self.s)
-            fits = compose_panel(self.p, self.s)
-        finally:
-            self.p.suppress_rendering = held
-        if not fits:  # the panel's text needs another layout: everything is laid out again
-            self.redraw()
-            self._record_frame()
-            return
-        # Only the image panels and the stage text changed: only their renderers are drawn.
-        # The 3D view is the costliest part of a frame (tens to hundreds of ms in software
-        # OpenGL, measured by benchmarks/ui_frames.py), the footer's and the title's text
-        # actors cost too, so they keep last frame's pixels: VTK renders into its own
-        # framebuffer, and a renderer that is not drawn leaves its viewport as it was (the
-        # layout's parts never overlap). Any other render (camera moves, stage changes,
-        # resizes) draws everything again.
-        p = self.p
-        skip = [p.renderers[p.renderers.loc_to_index(CELL_3D)],
-                p.renderers[p.renderers.loc_to_index(CELL_TITLE)]]
-        if not self.s.panel_changed:
-            skip.append(p.renderers[p.renderers.loc_to_index(CELL_PANEL)])
-        if self.controls is not None and not self.s.show_help:
-            skip.append(self.controls.overlay)  # the help box lies over the other parts
-        for ren in skip:
-            ren.SetDraw(False)
-        try:
-            p.render()
-        finally:
-            for ren in skip:
-                ren.SetDraw(True)
-        self._stamp()
-        self._record_frame()
