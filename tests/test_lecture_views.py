@@ -179,5 +179,10 @@ def test_the_headers_say_equal_time_while_an_estimator_waits_for_its_first_pass(
                         Entry("paper-multi", waiting, 0.0, note="compiling kernels")], "render")
     assert "equal time" in areas[0].header and "x time" in areas[1].header
     assert "compiling kernels" in areas[0].tiles[1].title
+    cold = mode_areas([Entry("planes", Welford.empty((4, 5, 3)), 0.0,
+                             note="compiling kernels (first run), 8 s..."),
+                       Entry("paper-multi", waiting, 0.0, note="waiting for the first pass...")],
+                      "render")
+    assert "equal time" in cold[0].header  # a cold cache: nothing rendered yet, still timed
     untimed = mode_areas([Entry("planes", done, 0.0), Entry("b", done, 0.0)], "render")
     assert "equal passes" in untimed[0].header  # screenshots: every run 0 s

@@ -211,8 +211,10 @@ def _render_areas(ents, reference, clim, scale: VarScale | None, inspected) -> l
     lo, hi = clim
     many = len(ents) > 1
     # Screenshots report every run's seconds as 0 (equal passes); a live render reports
-    # seconds, but not yet for an estimator still waiting for its first pass.
-    timed = rows[0]["equal"] == "time" or any(e.seconds > 0 for e in ents)
+    # seconds, but not yet for an estimator still waiting for its first pass (it has a note:
+    # "compiling kernels (first run)", "waiting for the first pass...").
+    timed = rows[0]["equal"] == "time" or any(e.seconds > 0 or (e.acc.n == 0 and e.note)
+                                              for e in ents)
     tiles_a, tiles_b = [], []
     for i, (e, row, v) in enumerate(zip(ents, rows, var_means, strict=True)):
         mark = inspected is not None and i == inspected and many
