@@ -102,6 +102,25 @@ def test_a_new_pass_draws_the_panels_only_and_the_picture_of_a_full_redraw(app):
     assert count["footer"] == 1 and count["3d"] == 0
 
 
+def test_a_new_stage_is_composed_in_one_tick_and_rendered_in_the_next(app):
+    from ui.views.window import reinspect
+
+    s = app.s
+    s.prog.pause()  # no passes: only the inspection arrives
+    s.stepper.go("evaluate")
+    app.redraw()
+    s.pixel_xy = (31, 20)
+    reinspect(s)  # computed at once here (workers=0); the next tick takes it
+    count = _drawn(app)
+    app.tick()
+    assert s.inspection is not None and s.inspection.pixel_xy == (31, 20)
+    assert sum(count.values()) == 0, count  # composed, not rendered
+    app.tick()
+    assert count["3d"] == count["render"] == count["panel"] == count["footer"] == 1, count
+    app.tick()
+    assert count["3d"] == 1  # nothing new: nothing drawn
+
+
 def test_unchanged_parts_are_kept(app):
     from ui.views.compose import CELL_PANEL
 

@@ -125,6 +125,7 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
         self._t0 = time.perf_counter()
         self.scripted, self._said = False, ""
         self._launched = launch_time()  # None: no time stamps printed
+        self._render_due = False  # a tick composed a new stage; the next one renders it
         self._milestones: set = set()
 
     @property
@@ -214,6 +215,14 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
         s.sliders_on = self.controls.sliders_on
 
     def redraw(self, keep_camera: bool = True) -> None:
+        """Compose every part of the window for the state and render it."""
+        self.compose_all(keep_camera)
+        self.p.render()
+        self._render_due = False
+        self._stamp()
+
+    def compose_all(self, keep_camera: bool = True) -> None:
+        """Compose every part of the window for the state, without rendering it."""
         # Once a window is shown pyvista renders after every added actor; composing a stage
         # adds dozens, so rendering is held until the whole frame is built (as in lecture mode).
         held = self.p.suppress_rendering
@@ -226,8 +235,6 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
                 self.controls.show_help(HELP, self.s.show_help)
         finally:
             self.p.suppress_rendering = held
-        self.p.render()
-        self._stamp()
 
     # ---------------------------------------------------------------- stages
     def next(self) -> None:

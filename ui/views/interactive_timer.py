@@ -96,12 +96,18 @@ class Ticker:
             s.acc.add(render_pass(s.scene, s.estimator, s.acc.n, s.seed, s.settings))
             s.message = f"playing: {s.acc.n} passes"
             got = 1
-        # One render per tick: a new stage redraws everything (with the passes merged above),
-        # new passes only the image panels and the stage text.
+        # At most one composition or one render per tick. A new stage (an inspection arrived)
+        # is composed in this tick, with the passes merged above, and the whole window is
+        # rendered in the next: building its actors and rendering it (3D view included) each
+        # cost as much as a frame, so they are not added up in one tick. New passes redraw
+        # the image panels and the stage text only.
         if stage_new:
-            self.redraw()
-            if got:
-                self._record_frame()
+            self.compose_all()
+            self._render_due = True
+        elif self._render_due:
+            if got and not self._compose_frame():
+                self.compose_all()  # the stage text needs another layout
+            self.redraw_render()
         elif got:
             self._frame()
         elif s.inspector is not None and s.inspector.busy("pixel") is not None:
@@ -110,15 +116,27 @@ class Ticker:
                 self._busy_shown = now
                 self._frame()
 
-    def _frame(self) -> None:
-        """Redraw the image panels and the stage panel (the 3D view and its camera stay)."""
+    def redraw_render(self) -> None:
+        """Render the whole window as composed (the second half of a new stage's redraw)."""
+        self.p.render()
+        self._render_due = False
+        self._stamp()
+        self._record_frame()
+
+    def _compose_frame(self) -> bool:
+        """Compose the image panels and the stage panel; False when the panel's text needs
+        another layout."""
         held = self.p.suppress_rendering
         self.p.suppress_rendering = True
         try:
             compose_images(self.p, self.s)
-            fits = compose_panel(self.p, self.s)
+            return compose_panel(self.p, self.s)
         finally:
             self.p.suppress_rendering = held
+
+    def _frame(self) -> None:
+        """Redraw the image panels and the stage panel (the 3D view and its camera stay)."""
+        fits = self._compose_frame()
         if not fits:  # the panel's text needs another layout: everything is laid out again
             self.redraw()
             self._record_frame()
