@@ -1,7 +1,8 @@
 """What one tick of the window draws (issue 13, "never freeze": no UI frame over 100 ms).
 
 A frame that merged new passes draws only the parts that changed (the image panels and the
-stage text), and the window's pixels are then those of a full redraw; the footer, the title
+stage text), and the window's pixels are then those of a full redraw; a new stage is composed
+in one tick and rendered in the next; the footer, the title
 and the stage text are left as they are when nothing they show changed; the window's timer
 calls ``App.tick`` and nothing else (pyvista's ``add_timer_event`` rendered the whole window
 after every tick, five times a second); breakdowns are rendered only while a mode shows them,
