@@ -16,6 +16,11 @@ comparison headless and writes into ``--out``:
 and prints what it measured. Nothing here states a result: the numbers are those of this run
 on this machine (a faster preset simply shows a better ratio). Compiling the kernels (numba,
 the first run of a clone) is done before the clock starts and reported apart.
+``--min-scatter``/``--max-scatter`` set the scatter range as on ``render`` and ``compare``.
+
+For the window, the render worker and the stage inspector are started
+(:func:`start_background`) before VTK is imported: they load their kernels while the window
+opens.
 
 The reference: ``scenes/<scene>_reference.npz`` when it exists and matches the scene
 (``scenes/showcase_reference.npz``, a long path-traced render), or ``--reference FILE.npz``;
