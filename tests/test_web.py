@@ -75,6 +75,36 @@ def test_bundled_names_only():
             bundled_path(bad)
 
 
+def test_one_frame_per_step(tmp_path):
+    """Stepping composes the stage and streams the 3D view once: pyvista calls its render
+    callbacks (trame's: render, JPEG-encode and send a frame) for every actor a stage adds,
+    even while rendering is held; with ten sessions on two cores those frames cost seconds."""
+    from trame.app import get_server
+
+    from ui.views.stepper import STAGES
+    from ui.web import _view3d
+    from ui.web.model import WebSession
+    from ui.web.page import Page
+
+    m = WebSession(str(ROOT / "scenes" / "area.toml"), ["planes"], photons=200, workers=0)
+    try:
+        server = get_server(name="test_one_frame_per_step", client_type="vue3")
+        page = Page(server, m, str(tmp_path))
+        page.initial_state(["area.toml"], "area.toml")
+        page.view = _view3d.remote_view(m.view, trame_server=server)
+        frames = []
+        page.view.update = lambda *a, **k: frames.append(m.s.stage)
+        for stage in STAGES[1:]:
+            m.step(1)
+            page.push_view()
+            assert frames == [stage], frames
+            frames.clear()
+        page.push_view(keep_camera=False)  # reset camera
+        assert frames == ["reconstruct"]
+    finally:
+        m.close()
+
+
 # --------------------------------------------------------------------------- in a browser
 @pytest.fixture(scope="module")
 def server():

@@ -53,6 +53,7 @@ class Page:
         self.dirty = False  # passes arrived that the panels do not show yet
         self.budget = RENDER_BUDGET  # worker seconds before the render pauses by itself
         self.view = None  # the remote view widget (set by main)
+        self.frame_task = None  # the newest frame's delivery (push_view)
 
     # ------------------------------------------------------------------ state
     def initial_state(self, scene_items, scene_name) -> None:
@@ -92,7 +93,26 @@ class Page:
         self.m.draw_3d(keep_camera=keep_camera)
         if self.view is not None:
             self.view.update()
+            self._deliver_frame()
         self.state.view_token += 1
+
+    def _deliver_frame(self) -> None:
+        """The new frame to the page once encoded (:func:`ui.web._view3d.deliver_frame`)."""
+        try:
+            asyncio.get_running_loop()
+        except RuntimeError:  # building the page: the first frame goes when a page connects
+            return
+        if self.frame_task is not None and not self.frame_task.done():
+            self.frame_task.cancel()  # an older frame's wait: this one supersedes it
+        self.frame_task = asyncio.ensure_future(self._frame())
+
+    async def _frame(self) -> None:
+        from . import _view3d
+
+        try:
+            await _view3d.deliver_frame(self.server, self.m.view)
+        except Exception:  # trame-vtk's own retry still sends it
+            traceback.print_exc(file=sys.stderr)
 
     def push_panels(self) -> None:
         import base64
