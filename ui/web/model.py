@@ -34,6 +34,8 @@ from .scenes import parse_specs
 
 #: Size of the panels picture (render | maps), in pixels.
 PANEL_SIZE = (1100, 430)
+#: Most photon subpaths drawn (the window's ``+`` stops there too).
+MAX_PATHS = 512
 
 
 class WebSession:
@@ -115,6 +117,11 @@ class WebSession:
         n = len(self.s.inspection.table)
         if n:
             self.s.hit = (self.s.hit + int(d)) % n
+
+    def paths(self, factor: float) -> None:
+        """Draw ``factor`` times as many photon subpaths in Trace and Create (the window's
+        ``+`` / ``-``; 1 to :data:`MAX_PATHS`)."""
+        self.s.n_paths = int(min(max(round(self.s.n_paths * float(factor)), 1), MAX_PATHS))
 
     def step_pass(self, d: int) -> bool:
         """Inspect another of the passes the panels hold; True when :meth:`inspect` is due."""
