@@ -106,6 +106,39 @@ def test_one_frame_per_step(tmp_path):
         m.close()
 
 
+def _sched(pid: int) -> tuple[int, int]:
+    """``(nice, scheduling policy)`` of a process, from /proc (policy 5: ``SCHED_IDLE``)."""
+    rest = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return int(rest[16]), int(rest[38])  # fields 19 and 41 of proc(5)
+
+
+def test_render_workers_yield_to_the_pages():
+    """A session's render worker runs at the lowest priority (nice 19, SCHED_IDLE), also
+    after it died and was restarted: with ten sessions the pages' steps come first."""
+    import signal
+    import time
+
+    from ui.web.model import WORKER_NICENESS, WebSession, worker_pids
+
+    m = WebSession(str(ROOT / "scenes" / "area.toml"), ["planes"], photons=200, workers=1)
+    try:
+        (first,) = worker_pids(m.s.prog)
+        assert _sched(first) == (WORKER_NICENESS, os.SCHED_IDLE)
+        os.kill(first, signal.SIGKILL)
+
+        def restarted():
+            m.poll()
+            pids = worker_pids(m.s.prog)
+            return pids[0] if pids and pids[0] != first else None
+
+        second = wait_for(restarted, 60, "the restarted worker", poll=0.1)
+        assert _sched(second) == (WORKER_NICENESS, os.SCHED_IDLE)
+        assert m.s.prog.restarts == 1
+        time.sleep(0.1)
+    finally:
+        m.close()
+
+
 # --------------------------------------------------------------------------- in a browser
 @pytest.fixture(scope="module")
 def server():

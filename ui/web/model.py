@@ -61,7 +61,7 @@ class WebSession:
         st = window.build_state(scene_path, specs[0], seed, None, photons, render_passes=False,
                                 estimators=specs, inspect=0)
         window.attach_progressive(st, workers=workers)
-        _lowest_priority(st.prog)
+        self._lowered = _lowest_priority(st.prog)
         if max_passes is not None:  # a fixed number of passes (tests: the same pictures)
             st.prog.reset(max_passes=int(max_passes))
         self.s = st
@@ -211,6 +211,7 @@ class WebSession:
         got = s.prog.poll()
         if got:
             s.acc = s.prog.runs[s.inspected].acc
+        self._lowered = _lowest_priority(s.prog, self._lowered)  # a worker restarted
         return got
 
     @property
@@ -293,17 +294,31 @@ class WebSession:
 
 
 #: Niceness of a session's render worker: the pages of every session come first (the window
-#: runs its worker at +10; ten sessions' workers at +10 would still take half the CPU).
+#: runs its worker at +10; ten sessions' workers at +10 took half the CPU from the pages).
 WORKER_NICENESS = 19
 
 
-def _lowest_priority(prog) -> None:
-    """Renice the render worker processes of ``prog`` to :data:`WORKER_NICENESS`."""
-    for proc in getattr(prog, "_procs", ()):
+def worker_pids(prog) -> list[int]:
+    """Process ids of the render workers of ``prog`` (none with ``workers=0``)."""
+    pool = getattr(prog, "_pool", None)
+    return list(pool.pids) if pool is not None else []
+
+
+def _lowest_priority(prog, done=frozenset()) -> frozenset:
+    """Put the render workers of ``prog`` not in ``done`` at the lowest priority: nice
+    :data:`WORKER_NICENESS` and Linux's ``SCHED_IDLE`` (they run when the pages of every
+    session have nothing to do); returns the workers' ids (a restarted worker is new)."""
+    pids = frozenset(worker_pids(prog))
+    for pid in pids - done:
         try:
-            os.setpriority(os.PRIO_PROCESS, proc.pid, WORKER_NICENESS)
+            os.setpriority(os.PRIO_PROCESS, pid, WORKER_NICENESS)
         except (AttributeError, OSError):  # not POSIX, or not allowed: leave it at +10
             pass
+        try:
+            os.sched_setscheduler(pid, os.SCHED_IDLE, os.sched_param(0))
+        except (AttributeError, OSError):  # not Linux: the niceness alone
+            pass
+    return pids
 
 
 def png_bytes(img) -> bytes:
