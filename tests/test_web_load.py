@@ -148,10 +148,11 @@ async def student(i: int, ws_url: str, t_end_box: list, out: dict) -> None:
     task.cancel()
 
 
-def tree_cpu(root: int) -> float:
-    """CPU seconds (user + system) of process ``root`` and every process below it."""
-    hz = os.sysconf("SC_CLK_TCK")
-    parent, cpu = {}, {}
+def tree_usage(root: int) -> tuple[float, float]:
+    """``(CPU seconds (user + system), resident GiB)`` of process ``root`` and every process
+    below it (from /proc)."""
+    hz, page = os.sysconf("SC_CLK_TCK"), os.sysconf("SC_PAGE_SIZE")
+    parent, use = {}, {}
     for d in os.listdir("/proc"):
         if d.isdigit():
             try:
@@ -159,16 +160,19 @@ def tree_cpu(root: int) -> float:
                     rest = f.read().rsplit(")", 1)[1].split()
             except OSError:
                 continue
-            parent[int(d)], cpu[int(d)] = int(rest[1]), (int(rest[11]) + int(rest[12])) / hz
+            parent[int(d)] = int(rest[1])
+            use[int(d)] = ((int(rest[11]) + int(rest[12])) / hz, int(rest[21]) * page / 2**30)
     children = {}
     for pid, ppid in parent.items():
         children.setdefault(ppid, []).append(pid)
-    total, stack = 0.0, [root]
+    cpu = rss = 0.0
+    stack = [root]
     while stack:
         pid = stack.pop()
-        total += cpu.get(pid, 0.0)
+        c, r = use.get(pid, (0.0, 0.0))
+        cpu, rss = cpu + c, rss + r
         stack += children.get(pid, [])
-    return total
+    return cpu, rss
 
 
 def _q(values, q):
@@ -199,12 +203,13 @@ def test_ten_sessions_for_a_minute():
                 assert time.monotonic() - t0 < READY_TIMEOUT, "sessions not ready"
                 await asyncio.sleep(0.2)
             out["connect"] = time.monotonic() - t0
-            cpu0, wall0 = tree_cpu(server.proc.pid), time.monotonic()
+            cpu0, wall0 = tree_usage(server.proc.pid)[0], time.monotonic()
             t_end[0] = time.monotonic() + SECONDS
             await asyncio.wait_for(asyncio.gather(*tasks), SECONDS + 120)
             # Cores the server (front, sessions, render workers) had: on a machine shared
             # with other work it gets a share of the two, and the responses say how small.
-            out["cores"] = (tree_cpu(server.proc.pid) - cpu0) / (time.monotonic() - wall0)
+            cpu1, out["rss"] = tree_usage(server.proc.pid)
+            out["cores"] = (cpu1 - cpu0) / (time.monotonic() - wall0)
 
         asyncio.run(main())
         with urllib.request.urlopen(server.url + "status", timeout=30) as r:
@@ -221,6 +226,7 @@ def test_ten_sessions_for_a_minute():
                "pick_max_s": _q(picks, 1.0), "sessions_alive": sum(out["alive"]),
                "server_sessions": status["sessions"],
                "server_cores_used": round(out["cores"], 2),
+               "server_rss_gib": round(out["rss"], 2),
                "load_average": [round(v, 1) for v in os.getloadavg()]}
     print("load:", json.dumps(summary))
     assert not out["errors"], out["errors"][:3]
