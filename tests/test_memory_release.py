@@ -15,7 +15,7 @@ import sys
 import numpy as np
 import pytest
 
-from psurf_core.kernels.buffers import HitBuffers
+from psurf_core.kernels.buffers import RECENT_TAKES, HitBuffers
 from psurf_core.memory_release import release_free_memory, release_pages
 
 pytestmark = pytest.mark.skipif(
@@ -67,10 +67,11 @@ def test_release_pages_never_touches_a_neighbours_page():
     assert (raw[:PAGE] == 1).all() and (raw[7 * PAGE:] == 1).all()
 
 
-def test_hit_buffers_keep_resident_only_what_the_lease_in_hand_needs():
-    """A large lease, written, then a small one from the same storage: the storage's pages
-    past the small need are no longer resident (before, they stayed until the run ended, and
-    each rarer, larger pass raised that mark)."""
+def test_hit_buffers_hand_back_a_rare_large_need_once_it_is_old():
+    """A large lease, written, then small ones from the same storage: while the large need is
+    among the last RECENT_TAKES its pages stay (alternating needs must not re-fault), after
+    that the storage's pages past the small need are no longer resident (before, they stayed
+    until the run ended, and each rarer, larger pass raised that mark)."""
     pool = HitBuffers()
     fields = ((np.float64, 3),)
     big = pool.take("k", fields, 200_000)  # 4.8 MB
@@ -78,9 +79,14 @@ def test_hit_buffers_keep_resident_only_what_the_lease_in_hand_needs():
     storage = pool.storage["k"][0]
     assert resident(storage).sum() * PAGE >= 4_800_000
     del big
-    small = pool.take("k", fields, 1000)  # 24 kB, the same storage
-    assert pool.storage["k"][0] is storage
-    assert small[0].__array_interface__["data"][0] == storage.ctypes.data
+    for k in range(RECENT_TAKES - 1):
+        small = pool.take("k", fields, 1000)  # 24 kB, the same storage
+        assert pool.storage["k"][0] is storage
+        assert small[0].__array_interface__["data"][0] == storage.ctypes.data
+        small[0][:] = 2.0
+        del small
+        assert resident(storage).sum() * PAGE >= 4_800_000, k  # still recent: kept
+    small = pool.take("k", fields, 1000)  # the large need has left the window
     assert resident(storage).sum() * PAGE <= 24_000 + 2 * PAGE
     small[0][:] = 2.0
     del small
