@@ -11,14 +11,17 @@ command a user leaves running) and samples the summed ``VmRSS`` of it and its ch
 (``--jobs`` workers) every ``--interval`` seconds. ``progressive`` drives the window's
 background render (:class:`ui.cli.progressive.Progressive`, one worker process, polled ten
 times a second as the window's timer does, every estimator accumulating) in this process
-and samples this process plus its worker; the VTK window itself is not opened.
+and samples this process plus its worker; the VTK window itself is not opened. Its clock
+starts once every estimator has its first pass (compiling is reported apart).
 
-Reported (and written to ``--json``, with the thinned series): RSS at the start of the fit,
-at the end and its maximum, and the least-squares slope in MiB per hour over the samples
-after the first ``--warmup`` seconds (compilation, first allocations), with the fit's
-standard error, the slope of the second half alone (a drift that levels off), and the slope
-of the floor (the lowest sample of every ``--floor-window`` seconds: what stays allocated
-between the passes' transient peaks, the number to read for the window); and
+Reported (and written to ``--json``, with every sample): RSS at the start of the fit,
+at the end, its minimum and maximum, and slopes in MiB per hour over the samples after the
+first ``--warmup`` seconds (compilation, first allocations): least squares over every sample
+(with its standard error), over the floor (the lowest sample of every ``--floor-window``
+seconds: what stays allocated between the passes' transient peaks, the number to read for
+the window) and over the level (each window's median: robust to a dip sampled right after
+``render``'s ``malloc_trim``, which the next pass fills again), each also over the second
+half alone (a drift that levels off has a second half near 0); and
 that no pass was lost: ``render``'s ``.npz`` holds as many passes as its last checkpoint,
 ``progressive``'s accumulators equal a serial render of as many passes, bit for bit
 (``--verify``, default on). The numbers depend on the machine and what else runs on it.
@@ -61,44 +64,65 @@ def rss_bytes(pid: int) -> int:
     return total
 
 
+def _slope(t: np.ndarray, r: np.ndarray) -> float:
+    """Least-squares slope of ``r`` (MiB) over ``t`` (s) in MiB per hour (NaN below 3)."""
+    return float(np.polyfit(t, r, 1)[0] * 3600) if t.size >= 3 else float("nan")
+
+
+def _windows(t: np.ndarray, r: np.ndarray, window: float, how) -> tuple[np.ndarray, ...]:
+    """``(times, values)``: ``how`` (np.min, np.median) of the samples of every ``window``
+    seconds, at the window's middle."""
+    edges = np.arange(t[0], t[-1] + window, window)
+    wt, wr = [], []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        sel = (t >= a) & (t < b)
+        if sel.any():
+            wt.append(float(t[sel].mean()))
+            wr.append(float(how(r[sel])))
+    return np.array(wt), np.array(wr)
+
+
 def fit(samples: list[tuple[float, int]], warmup: float, floor_window: float = 30.0) -> dict:
-    """Least-squares slope of RSS over time after ``warmup`` seconds (MiB/hour), of all
-    samples and of the floor (each ``floor_window`` seconds' lowest sample)."""
-    t = np.array([s[0] for s in samples])
+    """Slopes of RSS over time after ``warmup`` seconds (MiB/hour).
+
+    ``slope``: least squares over every sample, with its standard error. ``floor``: over the
+    lowest sample of each ``floor_window`` seconds (what stays allocated between the passes'
+    transient peaks). ``level``: over each window's median, which neither a pass's peak nor
+    a dip sampled just after ``render``'s ``malloc_trim`` (the freed heap it hands back,
+    touched again by the next pass) moves. Each also over the second half alone (the second
+    hour of a two-hour run: a growth that levels off has a second-half slope near 0).
+    """
+    t = np.array([s[0] for s in samples], dtype=float)
     r = np.array([s[1] for s in samples], dtype=float) / 2**20
     keep = t >= warmup
     t, r = t[keep], r[keep]
     if t.size < 3:
         return {"samples": int(t.size)}
     a = np.vstack([t, np.ones_like(t)]).T
-    coef, res, *_ = np.linalg.lstsq(a, r, rcond=None)
+    coef, *_ = np.linalg.lstsq(a, r, rcond=None)
     dof = max(t.size - 2, 1)
     sigma2 = float(np.sum((r - a @ coef) ** 2) / dof)
     se = float(np.sqrt(sigma2 / np.sum((t - t.mean()) ** 2)))
-    # The floor between passes (the lowest sample of each --floor-window seconds): what
-    # stays allocated, without the transient peaks of the passes themselves.
-    edges = np.arange(t[0], t[-1] + floor_window, floor_window)
-    floor_t, floor_r = [], []
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
-        sel = (t >= a) & (t < b)
-        if sel.any():
-            floor_t.append(float(t[sel][np.argmin(r[sel])]))
-            floor_r.append(float(r[sel].min()))
-    floor = (np.polyfit(floor_t, floor_r, 1)[0] * 3600 if len(floor_t) >= 3
-             else float("nan"))
-    half = t >= (t[0] + t[-1]) / 2
-    late = np.polyfit(t[half], r[half], 1)[0] * 3600 if half.sum() >= 3 else float("nan")
-    step = max(1, t.size // 200)
+    floor_t, floor_r = _windows(t, r, floor_window, np.min)
+    level_t, level_r = _windows(t, r, floor_window, np.median)
+    mid = (t[0] + t[-1]) / 2
+    half, fhalf, lhalf = t >= mid, floor_t >= mid, level_t >= mid
     return {"samples": int(t.size), "fit_seconds": float(t[-1] - t[0]),
             "rss_start_mib": float(r[0]), "rss_end_mib": float(r[-1]),
-            "rss_max_mib": float(r.max()), "slope_mib_per_hour": float(coef[0] * 3600),
+            "rss_min_mib": float(r.min()), "rss_max_mib": float(r.max()),
+            "slope_mib_per_hour": float(coef[0] * 3600),
             "slope_se_mib_per_hour": float(se * 3600),
-            "slope_second_half_mib_per_hour": float(late),
-            "floor_slope_mib_per_hour": float(floor), "floor_window_s": floor_window,
-            "floor_start_mib": floor_r[0] if floor_r else None,
-            "floor_end_mib": floor_r[-1] if floor_r else None,
+            "slope_second_half_mib_per_hour": _slope(t[half], r[half]),
+            "floor_slope_mib_per_hour": _slope(floor_t, floor_r),
+            "floor_slope_second_half_mib_per_hour": _slope(floor_t[fhalf], floor_r[fhalf]),
+            "level_slope_mib_per_hour": _slope(level_t, level_r),
+            "level_slope_second_half_mib_per_hour": _slope(level_t[lhalf], level_r[lhalf]),
+            "floor_window_s": floor_window,
+            "floor_start_mib": float(floor_r[0]), "floor_end_mib": float(floor_r[-1]),
+            "level_start_mib": float(level_r[0]), "level_end_mib": float(level_r[-1]),
+            "level_second_half_start_mib": float(level_r[lhalf][0]) if lhalf.any() else None,
             "series_s_mib": [[round(float(a), 1), round(float(b), 2)]
-                             for a, b in zip(t[::step], r[::step], strict=True)]}
+                             for a, b in zip(t, r, strict=True)]}
 
 
 def run_render(args) -> dict:
@@ -145,8 +169,18 @@ def run_progressive(args) -> dict:
     settings = RenderSettings(photons=args.photons)
     prog = Progressive(scene, specs, settings, seed=0, workers=1, breakdown=True)
     samples = []
-    t0 = time.monotonic()
+    t_open = time.monotonic()
     try:
+        # The clock starts once every estimator has a pass: compiling (minutes on a cold
+        # numba cache) is neither the window's steady state nor part of --seconds.
+        while min(r.acc.n for r in prog.runs) == 0:
+            prog.poll()
+            if prog.errors or time.monotonic() - t_open > args.compile_timeout:
+                raise SystemExit(f"no first pass of every estimator after "
+                                 f"{time.monotonic() - t_open:.0f} s: {prog.errors}")
+            time.sleep(0.1)
+        t0 = time.monotonic()
+        first_passes = time.monotonic() - t_open
         while time.monotonic() - t0 < args.seconds:
             prog.poll()
             now = time.monotonic()
@@ -170,8 +204,21 @@ def run_progressive(args) -> dict:
             verified &= bool(np.array_equal(ref.accumulator.mean, acc.mean)
                              and np.array_equal(ref.accumulator.m2, acc.m2))
     return {"mode": "progressive", "estimators": specs, "photons": args.photons,
+            "seconds_to_first_passes": round(first_passes, 1),
             "passes": {spec: int(acc.n) for spec, acc in runs},
             "no_pass_lost": verified, **fit(samples, args.warmup, args.floor_window)}
+
+
+def _commit() -> str | None:
+    """The checkout's commit (``-dirty`` with uncommitted changes), or None outside git."""
+    try:
+        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                              capture_output=True, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "-uno"],
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return head + ("-dirty" if dirty else "")
 
 
 def main(argv=None) -> int:
@@ -189,11 +236,18 @@ def main(argv=None) -> int:
                    help="seconds left out of the fit (default 20)")
     p.add_argument("--floor-window", type=float, default=30.0,
                    help="seconds per floor sample (default 30)")
+    p.add_argument("--compile-timeout", type=float, default=1800.0,
+                   help="progressive: seconds to wait for every estimator's first pass "
+                        "(compilation), not counted in --seconds (default 1800)")
     p.add_argument("--no-verify", dest="verify", action="store_false")
     p.add_argument("--json", default=None, metavar="OUT.json")
     args = p.parse_args(argv)
+    started, load_before = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()), os.getloadavg()
     result = run_render(args) if args.mode == "render" else run_progressive(args)
-    result["argv"] = sys.argv
+    result.update(argv=sys.argv, commit=_commit(), started=started,
+                  ended=time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
+                  load_average_before_after=[round(load_before[0], 2),
+                                             round(os.getloadavg()[0], 2)])
     print(json.dumps({k: v for k, v in result.items() if k != "series_s_mib"}, indent=1))
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1))

@@ -7,8 +7,9 @@ given, otherwise the memory this machine has available now (:func:`available_mem
 parts, the limit, and the largest value of the size behind the largest part that would fit.
 :func:`check_mesh_files` does the same for the meshes a scene file names, before trimesh
 loads them. :func:`photon_limit` is the largest photon count per pass that fits the window's
-progressive render (its photon slider's bound). :func:`release_free_memory` hands glibc's
-free pages back (long renders).
+progressive render (its photon slider's bound). :func:`release_free_memory` and
+:func:`release_pages` (from :mod:`psurf_core.memory_release`, kept here for the commands)
+hand memory back to the system during long runs.
 """
 
 from __future__ import annotations
@@ -17,9 +18,10 @@ import math
 import os
 
 from .budget import MIB, TRIANGLE_LOAD_BYTES, Need, format_bytes, progressive_need
+from .memory_release import TRIM_SECONDS, release_free_memory, release_pages
 
-__all__ = ["BudgetError", "available_memory", "check", "check_mesh_files", "limit",
-           "photon_limit", "release_free_memory"]
+__all__ = ["TRIM_SECONDS", "BudgetError", "available_memory", "check", "check_mesh_files",
+           "limit", "photon_limit", "release_free_memory", "release_pages"]
 
 
 class BudgetError(ValueError):
@@ -178,34 +180,3 @@ def check_mesh_files(scene_path, budget_mib: int | None, *,
     raise BudgetError(f"{scene_path}: {key}: {path} has {n:,} triangles; loading the scene's "
                       f"meshes would need about {format_bytes(total)} of memory, more than "
                       f"{phrase}; use a mesh with at most ~{max(fit, 0):,} triangles{more}")
-
-
-def release_free_memory() -> bool:
-    """Hand the heap's free pages back to the system (glibc ``malloc_trim``; elsewhere a
-    no-op returning False).
-
-    A long render frees everything a pass allocates, but glibc keeps some freed pages: RSS
-    then creeps up by a few MiB per hour without any leak (measured: 5.8 MiB/h over a 15-min
-    ``planes`` render, while numba's allocations balanced, Python's objects stayed flat and
-    ``malloc_trim`` brought RSS to the same 271.4-271.9 MiB after 500 and after 1700 passes).
-    ``render`` calls this every :data:`TRIM_SECONDS`.
-    """
-    global _LIBC
-    if _LIBC is None:
-        try:
-            import ctypes
-
-            _LIBC = ctypes.CDLL("libc.so.6")
-            _LIBC.malloc_trim.argtypes = [ctypes.c_size_t]
-        except (OSError, AttributeError):
-            _LIBC = False
-    if not _LIBC:
-        return False
-    _LIBC.malloc_trim(0)
-    return True
-
-
-#: Seconds between :func:`release_free_memory` calls of a long render.
-TRIM_SECONDS = 30.0
-
-_LIBC = None

@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import threading
 import weakref
+from collections import deque
 
 import numpy as np
+
+from ..memory_release import release_pages
 
 
 class _Storage(np.ndarray):
@@ -22,12 +25,24 @@ class _Storage(np.ndarray):
     lease (a plain view of this) keeps that lease alive."""
 
 
+#: Takes over which a buffer's resident extent follows the largest need. Releasing past every
+#: smaller need would re-fault the same pages on the next larger one (an MIS pass's chunks
+#: alternate between members' needs); past the largest of the recent ones, only a rare deep
+#: batch's pages are handed back, once it is this many takes old.
+RECENT_TAKES = 32
+
+#: Bytes of resident excess worth an ``madvise`` call.
+RELEASE_MIN_BYTES = 1 << 20
+
+
 class HitBuffers(threading.local):
     """Two reusable buffers per kind of output and thread."""
 
     def __init__(self):
         self.storage: dict = {}
         self.leases: dict = {}
+        self.recent: dict = {}    # (kind, i) -> the needs of its last RECENT_TAKES takes
+        self.resident: dict = {}  # (kind, i) -> bytes of its storage possibly resident
 
     def take(self, kind: str, fields, rows: int) -> tuple[np.ndarray, ...]:
         """Arrays of ``rows`` rows, one per ``(dtype, width)`` of ``fields`` ((rows,) for
@@ -41,10 +56,24 @@ class HitBuffers(threading.local):
             if store[i] is None or store[i].size < need:
                 store[i] = None  # free the smaller one first
                 store[i] = _Storage(shape=(need + need // 4,), dtype=np.uint8)
+                self.resident[kind, i] = 0
             lease = store[i].view(np.ndarray)
             leases[i] = weakref.ref(lease)
+            self._follow_recent_needs(kind, i, store[i], need)
             return _split(lease, fields, rows)
         return _split(np.empty(need, np.uint8), fields, rows)
+
+    def _follow_recent_needs(self, kind: str, i: int, storage, need: int) -> None:
+        """Keep ``storage`` resident only as far as the largest of its recent needs: hand back
+        the pages a rare larger pass touched once it is :data:`RECENT_TAKES` takes old (what
+        else would stay resident for the rest of a long render)."""
+        recent = self.recent.setdefault((kind, i), deque(maxlen=RECENT_TAKES))
+        recent.append(need)
+        keep = max(recent)
+        resident = self.resident.get((kind, i), 0)
+        if resident - keep >= RELEASE_MIN_BYTES and release_pages(storage, keep):
+            resident = keep
+        self.resident[kind, i] = max(resident, need)
 
 
 def _padded(size: int) -> int:

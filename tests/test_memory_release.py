@@ -1,0 +1,99 @@
+"""Long runs stay flat: memory kept for reuse is resident only as far as the pass in hand needs.
+
+:func:`psurf_core.memory_release.release_pages` hands back the pages of a buffer past a
+need, and :class:`psurf_core.kernels.buffers.HitBuffers` calls it on every lease, so a rare
+large pass (a trace's outputs span the deepest photon of its batch) does not leave its pages
+resident for the rest of the run. Residency is read from ``/proc/self/pagemap`` (its
+"present" bit, readable without privileges), so these tests run on Linux only.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from psurf_core.kernels.buffers import RECENT_TAKES, HitBuffers
+from psurf_core.memory_release import release_free_memory, release_pages
+
+pytestmark = pytest.mark.skipif(
+    not sys.platform.startswith("linux") or not os.path.exists("/proc/self/pagemap"),
+    reason="page residency is read from Linux's /proc/self/pagemap")
+
+PAGE = os.sysconf("SC_PAGE_SIZE")
+
+
+def resident(buf: np.ndarray) -> np.ndarray:
+    """(pages,) bool: which pages spanned by ``buf``'s memory are resident."""
+    first = buf.ctypes.data // PAGE
+    last = (buf.ctypes.data + buf.nbytes - 1) // PAGE
+    with open("/proc/self/pagemap", "rb") as f:
+        f.seek(first * 8)
+        entries = np.frombuffer(f.read((last - first + 1) * 8), dtype=np.uint64)
+    return (entries >> np.uint64(63)).astype(bool)
+
+
+def page_aligned(pages: int) -> np.ndarray:
+    """A uint8 array of ``pages`` whole pages starting on a page boundary (cut from a larger
+    allocation, so the pages around it belong to the same array)."""
+    raw = np.empty((pages + 2) * PAGE, np.uint8)
+    skip = -raw.ctypes.data % PAGE
+    return raw[skip:skip + pages * PAGE]
+
+
+def test_release_pages_hands_back_whole_pages_past_keep_only():
+    buf = page_aligned(64)
+    buf[:] = 7
+    assert resident(buf).all()
+    keep = 10 * PAGE + 100  # page 10 holds kept bytes: it stays
+    assert release_pages(buf, keep)
+    res = resident(buf)
+    assert res[:11].all() and not res[11:].any(), np.flatnonzero(res)
+    assert (buf[:keep] == 7).all()  # the kept bytes are untouched
+    assert (buf[11 * PAGE:] == 0).all()  # released pages read as zeros (and come back)
+    assert resident(buf).all()
+
+
+def test_release_pages_never_touches_a_neighbours_page():
+    """A buffer that starts and ends inside pages: those partial pages are kept."""
+    raw = page_aligned(8)
+    raw[:] = 1
+    buf = raw[100:7 * PAGE + 5]
+    release_pages(buf, 0)
+    res = resident(raw)
+    assert res[0] and res[7] and not res[1:7].any()
+    assert (raw[:PAGE] == 1).all() and (raw[7 * PAGE:] == 1).all()
+
+
+def test_hit_buffers_hand_back_a_rare_large_need_once_it_is_old():
+    """A large lease, written, then small ones from the same storage: while the large need is
+    among the last RECENT_TAKES its pages stay (alternating needs must not re-fault), after
+    that the storage's pages past the small need are no longer resident (before, they stayed
+    until the run ended, and each rarer, larger pass raised that mark)."""
+    pool = HitBuffers()
+    fields = ((np.float64, 3),)
+    big = pool.take("k", fields, 200_000)  # 4.8 MB
+    big[0][:] = 1.0
+    storage = pool.storage["k"][0]
+    assert resident(storage).sum() * PAGE >= 4_800_000
+    del big
+    for k in range(RECENT_TAKES - 1):
+        small = pool.take("k", fields, 1000)  # 24 kB, the same storage
+        assert pool.storage["k"][0] is storage
+        assert small[0].__array_interface__["data"][0] == storage.ctypes.data
+        small[0][:] = 2.0
+        del small
+        assert resident(storage).sum() * PAGE >= 4_800_000, k  # still recent: kept
+    small = pool.take("k", fields, 1000)  # the large need has left the window
+    assert resident(storage).sum() * PAGE <= 24_000 + 2 * PAGE
+    small[0][:] = 2.0
+    del small
+    again = pool.take("k", fields, 200_000)  # the large need again: its pages come back
+    again[0][:] = 3.0
+    assert (again[0] == 3.0).all()
+
+
+def test_release_free_memory_runs():
+    assert release_free_memory() in (True, False)
