@@ -208,9 +208,14 @@ def markdown(rows: list[dict]) -> str:
 
 
 def _commit() -> str:
+    """The checkout's short commit, ``+dirty`` when tracked files differ from it."""
+    def git(*a):
+        return subprocess.run(["git", *a], cwd=ROOT, text=True, capture_output=True,
+                              check=True).stdout.strip()
+
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
-                              capture_output=True, check=True).stdout.strip()
+        dirty = git("status", "--porcelain", "--untracked-files=no")
+        return git("rev-parse", "--short", "HEAD") + ("+dirty" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
@@ -287,6 +292,7 @@ def main(argv=None) -> int:
     if args.refs_only:
         return refs_only(cases, args)
     started = dt.datetime.now(dt.UTC)
+    commit = _commit()  # before the run: the code that ran, not what HEAD is at the end
     load0 = os.getloadavg()
     rows = []
     for case, path, kmin, kmax in cases:
@@ -299,7 +305,7 @@ def main(argv=None) -> int:
         "command": " ".join(shlex.quote(a) for a in [sys.executable, *sys.argv]),
         "started_utc": started.isoformat(timespec="seconds"),
         "finished_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-        "commit": _commit(), "variant": variant, "cpu_count": os.cpu_count(),
+        "commit": commit, "variant": variant, "cpu_count": os.cpu_count(),
         "loadavg_start": load0, "loadavg_end": os.getloadavg(),
         "relmse_eps": RELMSE_EPS, "time": args.time, "jobs": args.jobs, "rows": rows,
     }
