@@ -123,11 +123,16 @@ def mitsuba_model(scene, spps, passes, ref) -> dict:
             "var_time": vm * m1, "var_time_at": {s: vm * (m0 / s + m1) for s in spps}}
 
 
-def equal_time(scene, spec, seconds, runs, ref_path, ref) -> dict:
-    """Both render ``seconds`` CPU seconds ``runs`` times; mean relMSE and relVar of each."""
-    c = study.compare(scene, [spec], seconds, runs=runs, clock="cpu", reference=ref_path,
+def equal_time(scene, specs, seconds, runs, ref_path, ref) -> dict:
+    """Each side renders ``seconds`` CPU seconds ``runs`` times: mean relMSE, relVar, CPU s."""
+    c = study.compare(scene, list(specs), seconds, runs=runs, clock="cpu", reference=ref_path,
                       photons="auto")
-    row = c["results"][0]
+    out = {"floor": c["reference"]["relmse_floor"]}
+    for row in c["results"]:
+        out[row["estimator"]] = {"relmse": row["relmse"], "relvar": row["relmse_from_variance"],
+                                 "photons": row["photons_per_pass"],
+                                 "passes": row["passes_per_run"],
+                                 "cpu_seconds": float(np.mean(row["cpu_seconds_per_run"]))}
     spp, n = mr.mitsuba_cpu_plan(scene, seconds, 1)
     mi = []
     for r in range(runs):
@@ -137,23 +142,19 @@ def equal_time(scene, spec, seconds, runs, ref_path, ref) -> dict:
         mi.append({"cpu_seconds": time.process_time() - a, "passes": m.passes,
                    "relmse": relmse(m.mean, ref),
                    "relvar": var_relmse(m.var / m.passes, ref)})
-    return {"psurf": {"relmse": row["relmse"], "relvar": row["relmse_from_variance"],
-                      "photons": row["photons_per_pass"], "passes": row["passes_per_run"],
-                      "cpu_seconds": row["cpu_seconds_per_run"]},
-            "mitsuba": {"relmse": float(np.mean([x["relmse"] for x in mi])),
-                        "relvar": float(np.mean([x["relvar"] for x in mi])), "spp": spp,
-                        "passes": [x["passes"] for x in mi],
-                        "cpu_seconds": [x["cpu_seconds"] for x in mi]},
-            "floor": c["reference"]["relmse_floor"],
-            "relvar_time_ratio": (row["relmse_from_variance"] * np.mean(row["cpu_seconds_per_run"])
-                                  / np.mean([x["relvar"] * x["cpu_seconds"] for x in mi]))}
+    out["mitsuba"] = {"relmse": float(np.mean([x["relmse"] for x in mi])),
+                      "relvar": float(np.mean([x["relvar"] for x in mi])), "spp": spp,
+                      "passes": [x["passes"] for x in mi],
+                      "cpu_seconds": float(np.mean([x["cpu_seconds"] for x in mi]))}
+    return out
 
 
 def main(argv=None) -> int:
     """Command line (module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("case", choices=[c[0] for c in vs_mitsuba.CASES])
-    ap.add_argument("--spec", default=None, help="psurf estimator (default: recommended())")
+    ap.add_argument("--spec", default=None,
+                    help="psurf estimators, comma-separated (default: recommended())")
     ap.add_argument("--passes", type=int, default=16, help="passes per size and side")
     ap.add_argument("--spp", default="1", help="psurf camera rays per pixel per pass, e.g. 1,4")
     ap.add_argument("--mitsuba-spp", default="4,32", help="Mitsuba's two pass sizes")
@@ -166,7 +167,7 @@ def main(argv=None) -> int:
     ap.add_argument("--variant", default=None)
     args = ap.parse_args(argv)
     case, scene_path, kmin, kmax = next(c for c in vs_mitsuba.CASES if c[0] == args.case)
-    spec = args.spec or vs_mitsuba.recommended(kmin, kmax)
+    specs = (args.spec or vs_mitsuba.recommended(kmin, kmax)).split(",")
     ref_path = args.reference or str(mr.composite_path(args.work, case, "composite", kmin,
                                                        kmax, args.ref_time))
     if not Path(ref_path).exists():
@@ -183,7 +184,7 @@ def main(argv=None) -> int:
     print(f"mitsuba: Vm {mi['Vm']:.3g} (at {mi['spp']} spp: {mi['Vm_each'][0]:.3g}, "
           f"{mi['Vm_each'][1]:.3g}) m0 {mi['m0'] * 1e3:.1f} ms m1 {mi['m1'] * 1e3:.2f} ms/spp "
           f"var*t {mi['var_time']:.3g}", flush=True)
-    for spp in (int(x) for x in args.spp.split(",")):
+    for spec, spp in ((a, int(b)) for a in specs for b in args.spp.split(",")):
         p = psurf_model(scene, spec, args.passes, spp, ref)
         vt = p["var_time"]
         print(f"psurf {spec} spp {spp}: Vp {p['Vp']:.3g} ({p['Vp_each'][0]:.3g}, "
@@ -195,16 +196,18 @@ def main(argv=None) -> int:
               f"{_ratio_with(p, 0.25) / mi['var_time']:.3g}, c0 or Vj -> 0 "
               f"{p['photon_term'] / mi['var_time']:.3g}", flush=True)
     if args.time:
-        e = equal_time(scene, spec, args.time, args.runs, ref_path, ref)
-        ps, mt = e["psurf"], e["mitsuba"]
-        print(f"equal CPU time {args.time:g} s x {args.runs} runs: psurf relMSE "
-              f"{ps['relmse']:.3g} relVar {ps['relvar']:.3g} ({ps['photons']} photons, "
-              f"passes {ps['passes']}); Mitsuba relMSE {mt['relmse']:.3g} relVar "
-              f"{mt['relvar']:.3g} ({mt['spp']} spp, passes {mt['passes']}, CPU s "
-              f"{', '.join(f'{x:.1f}' for x in mt['cpu_seconds'])}); relMSE ratio "
-              f"{ps['relmse'] / mt['relmse']:.3g}, relVar ratio "
-              f"{ps['relvar'] / mt['relvar']:.3g} (x CPU s: {e['relvar_time_ratio']:.3g}); "
-              f"reference floor {e['floor']:.3g}")
+        e = equal_time(scene, specs, args.time, args.runs, ref_path, ref)
+        mt = e["mitsuba"]
+        print(f"equal CPU time, {args.time:g} s x {args.runs} runs, reference floor "
+              f"{e['floor']:.3g}: Mitsuba relMSE {mt['relmse']:.3g} relVar {mt['relvar']:.3g} "
+              f"({mt['spp']} spp, passes {mt['passes']}, {mt['cpu_seconds']:.1f} CPU s)")
+        for spec in specs:
+            ps = e[spec]
+            rt = ps["relvar"] * ps["cpu_seconds"] / (mt["relvar"] * mt["cpu_seconds"])
+            print(f"  psurf {spec}: relMSE {ps['relmse']:.3g} relVar {ps['relvar']:.3g} "
+                  f"({ps['photons']} photons, passes {ps['passes']}); ratios to Mitsuba: "
+                  f"relMSE {ps['relmse'] / mt['relmse']:.3g}, relVar "
+                  f"{ps['relvar'] / mt['relvar']:.3g} (x CPU s {rt:.3g})", flush=True)
     return 0
 
 
