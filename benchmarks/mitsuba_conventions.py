@@ -99,7 +99,7 @@ def _emitter_z(window):
 
 def mutations() -> None:
     """Each mutation of the converted scene against the check that should reject it."""
-    ms = T.ms
+    ms = T.ms.convert  # the conversion's module: the renders read these from it
     scene_dict, integrator_dict, near_clip = ms.scene_dict, ms.integrator_dict, ms.NEAR_CLIP
 
     def fov_x(d):

@@ -20,12 +20,31 @@ when it finds software OpenGL (``ui.views.window.software_opengl``), so ``window
 what the window does here. For comparison, ``synchronous``: what the timer once did, a
 ``render_pass`` inside the callback.
 
+Under a display (``xvfb-run``) the window is a real on-screen window (VTK's X window),
+otherwise an off-screen one (EGL).
+
+``--first-picture N`` measures instead how soon the window shows something useful after a
+launch: it starts ``python app.py SCENE --estimators A,B`` N times (after one launch that is
+not counted: it warms numba's cache and the file cache), each with a script that quits once
+the inspected estimator has a pass and the stage's inspection arrived, and reads the times the
+window prints (``ui.views.script.TIMES_ENV``, seconds since the launch): ``window`` (the first
+frame on screen), ``first-pass`` (a render in the image panels: the first useful picture),
+``all-passes`` (every estimator's render), ``inspection`` (the stage's numbers), and ``quit``
+(when the quit line arrived). ``--roots A,B`` alternates the launches between checkouts (a
+before/after comparison in one run on a shared machine; a checkout whose window prints no
+times has only ``quit``). Needs a display: run it under ``xvfb-run``.
+
 Run::
 
-    .venv/bin/python benchmarks/ui_frames.py [--frames 100] [--out out/ui_frames.json]
+    xvfb-run -a -s "-screen 0 1700x1000x24" .venv/bin/python benchmarks/ui_frames.py \
+        [--frames 100] [--out out/ui_frames.json]
+    xvfb-run -a -s "-screen 0 1700x1000x24" .venv/bin/python benchmarks/ui_frames.py \
+        --first-picture 5 [--roots .,/tmp/old] [--out out/first_picture.json]
 
 Writes ``out/ui_frames.json`` (per configuration: median, p95, max milliseconds, frames over
-100 ms, passes merged per estimator, the machine's load) and prints a table.
+100 ms, passes merged per estimator, the machine's load) and prints a table; with
+``--first-picture``, ``out/first_picture.json`` (every launch's times and the load averages
+before and after it; medians per checkout).
 """
 
 from __future__ import annotations
@@ -34,7 +53,9 @@ import argparse
 import json
 import os
 import platform
+import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -57,8 +78,10 @@ def _window(args, msaa: bool) -> dict:
     specs = args.estimators.split(",")
     state = window.build_state(args.scene, seed=0, photons=args.photons, render_passes=False,
                                estimators=specs, inspector_workers=1)
-    window.attach_progressive(state, workers=1)
-    plotter = window.make_plotter(tuple(args.size), off_screen=True)
+    # As the window does (``ui.views.interactive.run``): breakdowns only in the modes that
+    # show them (the ``m`` key switches them on).
+    window.attach_progressive(state, workers=1, breakdown=False)
+    plotter = window.make_plotter(tuple(args.size), off_screen=not _has_display())
     if not msaa:
         plotter.ren_win.SetMultiSamples(0)
     app = interactive.App(plotter, state)
@@ -67,14 +90,28 @@ def _window(args, msaa: bool) -> dict:
         # first tick; this configuration shows what that saves.
         app._gl_checked = True
     ticks, frames, insp, keys = [], [], [], {"n": [], "pixel": [], "m": []}
+    cpu = {"ticks": [], "frames": []}
     cam = state.scene.camera
+
+    def timer():
+        # What the window's timer does, through its own event: the TimerEvent's observers
+        # (App.tick, and whatever the binding adds: pyvista's add_timer_event also renders
+        # the whole window after every callback). Off-screen (no interactor): App.tick.
+        if plotter.iren is not None:
+            plotter.iren.interactor.InvokeEvent("TimerEvent")
+        else:
+            app.tick()
+
     try:
         app.bind()
         app.redraw(keep_camera=False)
-        plotter.screenshot(None, return_img=True)  # the first real render (window shown)
+        if _has_display():  # the window on the screen, its events left to this loop
+            plotter.show(interactive_update=True, auto_close=False)
+        else:
+            plotter.screenshot(None, return_img=True)  # the first real render
         t_start = time.perf_counter()
         while state.inspection is None and time.perf_counter() - t_start < 600:
-            app.tick()
+            timer()
             time.sleep(args.period)
         for f in range(args.frames):
             if f and f % max(args.frames // 8, 1) == 0:  # a key now and then
@@ -90,22 +127,31 @@ def _window(args, msaa: bool) -> dict:
                 keys[kind].append(1000.0 * (time.perf_counter() - t0))
             n0 = sum(state.prog.passes)
             waiting = state.inspection is None
-            t0 = time.perf_counter()
-            app.tick()
+            t0, c0 = time.perf_counter(), time.process_time()
+            timer()
             dt = 1000.0 * (time.perf_counter() - t0)
+            dc = 1000.0 * (time.process_time() - c0)  # this process: UI + Mesa's threads
             ticks.append(dt)
+            cpu["ticks"].append(dc)
             if waiting and state.inspection is not None:
                 insp.append(dt)
             elif sum(state.prog.passes) > n0:
                 frames.append(dt)
+                cpu["frames"].append(dc)
             time.sleep(max(0.0, args.period - dt / 1000.0))
         passes = dict(zip(specs, state.prog.passes, strict=True))
         inspected = state.estimator.spec
+        # VTK falls back to an off-screen EGL window when it cannot talk to the X server
+        # ("bad X server connection", seen under heavy load): say which one was measured.
+        window_class = type(plotter.ren_win).__name__
     finally:
         app.close()
         plotter.close()
     return {**_stats(frames), "ticks": _stats(ticks), "inspection_frames": _stats(insp),
-            "keys_ms": keys, "passes": passes, "inspected": inspected}
+            "cpu_ms": {k: _stats(v) for k, v in cpu.items()},
+            "keys_ms": keys, "passes": passes, "inspected": inspected,
+            "render_window": window_class,
+            "load_average_after": list(os.getloadavg())}
 
 
 def _synchronous(args) -> dict:
@@ -134,11 +180,91 @@ def _synchronous(args) -> dict:
     return {**_stats(times), "estimator": state.estimator.spec}
 
 
+def _has_display() -> bool:
+    return bool(os.environ.get("DISPLAY"))
+
+
+# --------------------------------------------------------------------------- first picture
+#: The script of a launch: quit once the inspected estimator has a pass and the stage's
+#: inspection arrived (the window prints its times on the way).
+FIRST_PICTURE_SCRIPT = "inspected;passes>=1;quit"
+
+
+def _launch(root: str, args, timeout: float = 300.0) -> dict:
+    """One launch of ``root``'s window: the times it printed and when its quit line came."""
+    env = dict(os.environ)
+    env.pop("PSURF_WINDOW_SCRIPT", None)
+    t_launch = time.time()
+    env.update({"PSURF_WINDOW_TIMES": repr(t_launch),
+                "PSURF_WINDOW_SCRIPT": FIRST_PICTURE_SCRIPT,
+                "PSURF_WINDOW_SIZE": ",".join(str(v) for v in args.size)})
+    load0 = list(os.getloadavg())
+    cmd = [sys.executable, "app.py", args.scene, "--estimators", args.estimators,
+           "--photons", str(args.photons)]
+    proc = subprocess.Popen(cmd, cwd=root, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    times, lines = {}, []
+
+    def read():
+        for line in proc.stdout:
+            arrived = time.time() - t_launch
+            lines.append(line.rstrip())
+            parts = line.split()
+            if line.startswith("window: time ") and len(parts) >= 4:
+                times[parts[2]] = float(parts[3])
+                if len(parts) >= 7 and parts[5] == "cpu":  # the window's own CPU seconds
+                    times[f"{parts[2]}-cpu"] = float(parts[6])
+            elif line.startswith("window: quit"):
+                times["quit"] = arrived
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+    reader.join(timeout=5.0)
+    return {"root": os.path.abspath(root), "times_s": times, "exit": proc.returncode,
+            "load_before": load0, "load_after": list(os.getloadavg()),
+            "tail": lines[-5:] if proc.returncode else []}
+
+
+def first_picture(args) -> dict:
+    """``--first-picture N``: N launches per checkout (alternating), after a warm-up each."""
+    if not _has_display():
+        raise SystemExit("--first-picture needs a display: run it under xvfb-run")
+    roots = [os.path.abspath(r) for r in args.roots.split(",")]
+    warm = [_launch(r, args) for r in roots]  # numba's cache, the file cache: not counted
+    runs = []
+    for _ in range(args.first_picture):
+        for r in roots:
+            runs.append(_launch(r, args))
+            print(f"{r}: " + ", ".join(f"{k} {v:.2f} s" for k, v in
+                                       sorted(runs[-1]["times_s"].items(),
+                                              key=lambda kv: kv[1]))
+                  + f"  (load {runs[-1]['load_before'][0]:.1f})", flush=True)
+    summary = {}
+    for r in roots:
+        mine = [x for x in runs if x["root"] == r]
+        keys = sorted({k for x in mine for k in x["times_s"]})
+        summary[r] = {k: {"median_s": float(np.median([x["times_s"][k] for x in mine
+                                                       if k in x["times_s"]])),
+                          "max_s": float(max(x["times_s"][k] for x in mine
+                                             if k in x["times_s"])),
+                          "runs": sum(k in x["times_s"] for x in mine)} for k in keys}
+    return {"scene": args.scene, "estimators": args.estimators, "photons": args.photons,
+            "size": list(args.size), "script": FIRST_PICTURE_SCRIPT,
+            "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
+            "warm_up": warm, "runs": runs, "summary": summary}
+
+
 def run(args) -> dict:
     from ui.views._vtk import pv
 
-    pv.OFF_SCREEN = True
+    pv.OFF_SCREEN = not _has_display()
     results = {"scene": args.scene, "estimators": args.estimators.split(","),
+               "window": "on-screen (X)" if _has_display() else "off-screen (EGL)",
                "photons": args.photons, "period_s": args.period, "size": list(args.size),
                "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                            "platform": platform.platform(),
@@ -149,6 +275,14 @@ def run(args) -> dict:
         results["configs"]["synchronous/no-msaa"] = _synchronous(args)
     results["machine"]["load_average_at_end"] = list(os.getloadavg())
     return results
+
+
+def _write(out: str, res: dict) -> None:
+    os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+    tmp = out + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(res, f, indent=2)
+    os.replace(tmp, out)
 
 
 def main(argv=None) -> int:
@@ -163,14 +297,27 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="the window without MSAA only")
     ap.add_argument("--size", type=lambda s: tuple(int(v) for v in s.split(",")),
                     default=(1600, 900))
-    ap.add_argument("--out", default=os.path.join(ROOT, "out", "ui_frames.json"))
+    ap.add_argument("--out", default=None,
+                    help="default out/ui_frames.json (out/first_picture.json with "
+                         "--first-picture)")
+    ap.add_argument("--first-picture", type=int, default=0, metavar="N",
+                    help="time N launches of the window to its first picture instead")
+    ap.add_argument("--roots", default=ROOT,
+                    help="--first-picture: checkouts to launch, alternating (A,B)")
     args = ap.parse_args(argv)
+    if args.first_picture:
+        args.out = args.out or os.path.join(ROOT, "out", "first_picture.json")
+        res = first_picture(args)
+        _write(args.out, res)
+        for root, keys in res["summary"].items():
+            print(f"{root}: median over {args.first_picture} launches: " + ", ".join(
+                f"{k} {v['median_s']:.2f} s (max {v['max_s']:.2f})"
+                for k, v in sorted(keys.items(), key=lambda kv: kv[1]["median_s"])))
+        print(f"wrote {args.out}")
+        return 0
+    args.out = args.out or os.path.join(ROOT, "out", "ui_frames.json")
     res = run(args)
-    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-    tmp = args.out + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(res, f, indent=2)
-    os.replace(tmp, args.out)
+    _write(args.out, res)
     m = res["machine"]
     print(f"load average {m['load_average_at_start'][0]:.1f} -> "
           f"{m['load_average_at_end'][0]:.1f} on {m['cpus']} cores")
@@ -186,9 +333,12 @@ def main(argv=None) -> int:
         if "ticks" in c:
             row("  every timer tick", c["ticks"])
             row("  new inspection", c["inspection_frames"])
+            row("  frames, CPU ms", c["cpu_ms"]["frames"])
+            row("  ticks, CPU ms", c["cpu_ms"]["ticks"])
             print("  keys (full redraws): " + "; ".join(
                 f"{k}: " + ", ".join(f"{v:.0f}ms" for v in vs)
-                for k, vs in c["keys_ms"].items()) + f"  [inspecting {c['inspected']}]")
+                for k, vs in c["keys_ms"].items()) + f"  [inspecting {c['inspected']}; "
+                f"{c['render_window']}]")
     print(f"wrote {args.out}")
     return 0
 

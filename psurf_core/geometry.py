@@ -13,6 +13,7 @@ import numpy as np
 
 from .constants import BOUNDS_PAD, BOX_EPS, PARALLEL_EPS, SHADOW_EPS
 from .kernels.jit import twin
+from .memo import memo
 from .scene import AreaLight, BoxOccluder, MeshLight, MeshOccluder, Scene, SphereOccluder
 
 #: Padding (scene units) of the blocker boxes of the segment reject in ``Blockers.occluded``.
@@ -303,7 +304,12 @@ def _crosses_plane(a: np.ndarray, b: np.ndarray, plane: np.ndarray) -> np.ndarra
 
 
 def blockers_of(scene: Scene) -> Blockers:
-    """Collect a scene's opaque surfaces (occluders and emitters) into one :class:`Blockers`."""
+    """Collect a scene's opaque surfaces (occluders and emitters) into one :class:`Blockers`
+    (built once per scene: every pass and table reads the same one)."""
+    return memo(scene, "blockers", lambda: _blockers_of(scene))
+
+
+def _blockers_of(scene: Scene) -> Blockers:
     sc, sr, bmin, bmax, quads, tris = [], [], [], [], [], []
     for oc in scene.occluders:
         if isinstance(oc, SphereOccluder):

@@ -11,6 +11,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .memo import frozen, memo
+
 
 class SceneError(ValueError):
     """A scene (or command line) that cannot be used; the message names file, key and problem."""
@@ -42,18 +44,19 @@ class Camera:
 
     @property
     def forward(self) -> np.ndarray:
-        """(3,) unit view direction."""
-        return _unit(self.look_at - self.position)
+        """(3,) unit view direction (read-only: computed once per camera)."""
+        return memo(self, "forward", lambda: frozen(_unit(self.look_at - self.position)))
 
     @property
     def right(self) -> np.ndarray:
-        """(3,) unit image-right direction, ``normalize(forward x up)``."""
-        return _unit(np.cross(self.forward, self.up))
+        """(3,) unit image-right direction, ``normalize(forward x up)`` (read-only)."""
+        return memo(self, "right", lambda: frozen(_unit(np.cross(self.forward, self.up))))
 
     @property
     def image_up(self) -> np.ndarray:
-        """(3,) unit image-up direction (``up`` projected orthogonal to ``forward``)."""
-        return np.cross(self.right, self.forward)
+        """(3,) unit image-up direction (``up`` projected orthogonal to ``forward``;
+        read-only)."""
+        return memo(self, "image_up", lambda: frozen(np.cross(self.right, self.forward)))
 
     @property
     def n_pixels(self) -> int:
@@ -79,10 +82,10 @@ class MediumRow(NamedTuple):
 
 
 def medium_row(medium: Medium) -> MediumRow:
-    """The compiled code's :class:`MediumRow` of ``medium``."""
-    return MediumRow(float(medium.sigma_t), float(medium.sigma_s), float(medium.g),
-                     tuple(float(x) for x in medium.bounds_min),
-                     tuple(float(x) for x in medium.bounds_max))
+    """The compiled code's :class:`MediumRow` of ``medium`` (built once per medium)."""
+    return memo(medium, "row", lambda: MediumRow(
+        float(medium.sigma_t), float(medium.sigma_s), float(medium.g),
+        tuple(float(x) for x in medium.bounds_min), tuple(float(x) for x in medium.bounds_max)))
 
 
 @dataclass(frozen=True)

@@ -2,34 +2,20 @@
 
 import numpy as np
 import pytest
+from small_scenes import POINT, make_scene
 
 from psurf_core.binning import candidate_pairs, screen_rects
 from psurf_core.camera import camera_rays, pixel_directions, project
 from psurf_core.geometry import blockers_of, ray_box, ray_triangles_first
-from psurf_core.scene import (
-    AreaLight,
-    BoxOccluder,
-    Camera,
-    Medium,
-    MeshLight,
-    Phase,
-    PointLight,
-    Scene,
-    SphereOccluder,
-)
+from psurf_core.scene import AreaLight, BoxOccluder, MeshLight, SphereOccluder
 
-
-def make_scene(occluders=(), lights=None, cam_pos=(0.0, 0.0, -4.0), res=(32, 24)):
-    cam = Camera(np.array(cam_pos, float), np.zeros(3), np.array([0.0, 1.0, 0.0]), 40.0, *res)
-    med = Medium(-np.ones(3), np.ones(3), 0.8, 0.2, Phase())
-    if lights is None:
-        lights = (PointLight(np.array([0.3, 0.4, 0.1]), np.full(3, 4.0), np.array([0.0, 1, 0])),)
-    return Scene(cam, med, tuple(lights), tuple(occluders))
+#: The image size of these tests (pixels).
+SIZE = (32, 24)
 
 
 def test_pixel_orientation():
     """Row 0 is the top, column 0 the left, as seen from the camera."""
-    cam = make_scene().camera
+    cam = make_scene([POINT], size=SIZE).camera
     d = pixel_directions(cam, np.array([0.5, cam.width - 0.5, cam.width / 2, cam.width / 2]),
                          np.array([cam.height / 2, cam.height / 2, 0.5, cam.height - 0.5]))
     # Camera looks along +z with up +y: image right is forward x up = -x.
@@ -39,7 +25,7 @@ def test_pixel_orientation():
 
 
 def test_fov_and_projection_roundtrip():
-    cam = make_scene().camera
+    cam = make_scene([POINT], size=SIZE).camera
     d = pixel_directions(cam, np.array([cam.width / 2.0]), np.array([0.0]))[0]
     angle = np.degrees(np.arccos(d @ cam.forward))
     assert angle == pytest.approx(cam.fov_y / 2, rel=1e-9)
@@ -51,7 +37,7 @@ def test_fov_and_projection_roundtrip():
 
 
 def test_jitter_stays_in_pixel_and_subset_replays():
-    sc = make_scene()
+    sc = make_scene([POINT], size=SIZE)
     rays = camera_rays(sc, 3, np.random.default_rng(1))
     px, py, _ = project(sc.camera, rays.o + rays.d)
     row, col = np.divmod(rays.pixel, sc.camera.width)
@@ -74,7 +60,7 @@ def test_camera_rays_clipped_by_occluders_and_emitters():
     box = BoxOccluder(np.array([0.5, 0.5, -0.2]), np.array([0.9, 0.9, 0.2]))
     area = AreaLight(np.array([-0.9, -0.9, 0.5]), np.array([0.6, 0, 0]), np.array([0, 0.6, 0]),
                      np.ones(3))
-    sc = make_scene((sphere, box), lights=(area,))
+    sc = make_scene([area], (sphere, box), size=SIZE)
     rays = camera_rays(sc, 1, jitter=False)
     o, d = rays.o, rays.d
     # Brute force along each ray: first blocked point.
@@ -105,7 +91,7 @@ def test_triangles_and_shadow_segments():
     t = ray_triangles_first(o, d, tri, np.zeros(2), np.full(2, np.inf))
     assert t[0] == pytest.approx(1.0) and np.isinf(t[1])
     mesh = MeshLight(tri * 0.5, np.ones(3))
-    b = blockers_of(make_scene(lights=(mesh,)))
+    b = blockers_of(make_scene([mesh], size=SIZE))
     a = np.array([[0.1, 0.1, -0.5], [0.1, 0.1, -0.5], [0.1, 0.1, 0.0]])
     e = np.array([[0.1, 0.1, 0.5], [0.4, 0.4, -0.1], [0.1, 0.1, 0.5]])
     # Through the emitter; beside it; starting on the emitter (its own surface never blocks).
@@ -114,7 +100,7 @@ def test_triangles_and_shadow_segments():
 
 def test_binning_covers_every_hit():
     """Every ray that really meets a primitive's box is among the candidate pairs."""
-    sc = make_scene(cam_pos=(0.3, 0.2, -3.0), res=(20, 15))
+    sc = make_scene([POINT], size=(20, 15), position=(0.3, 0.2, -3.0))
     rays = camera_rays(sc, 2, np.random.default_rng(3))
     rng = np.random.default_rng(4)
     c = rng.uniform(-1, 1, (300, 3))
@@ -135,7 +121,7 @@ def test_binning_covers_every_hit():
 
 
 def test_screen_rects_behind_camera():
-    cam = make_scene().camera
+    cam = make_scene([POINT], size=SIZE).camera
     lo = np.array([[-0.1, -0.1, -5.0], [-1, -1, -4.5]])
     hi = np.array([[0.1, 0.1, -4.5], [1, 1, 0.0]])
     x0, x1, y0, y1 = screen_rects(cam, lo, hi)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from small_scenes import POINT, TETRA, TETRA_VERTICES, TILTED_AREA, H, W, make_scene
 
 from psurf_core.camera import camera_rays, project
 from psurf_core.constants import MAX_TRACE_DEPTH
@@ -18,36 +19,9 @@ from psurf_core.geometry import blockers_of, ray_box, ray_parallelogram
 from psurf_core.reference import reference_image, reference_pass, single_scatter_quadrature
 from psurf_core.reference_quadrature import gauss_legendre_panels
 from psurf_core.sampling import phase_value, sample_uniform_sphere
-from psurf_core.scene import (
-    AreaLight,
-    Camera,
-    Medium,
-    MeshLight,
-    Phase,
-    PointLight,
-    Scene,
-    SphereOccluder,
-)
+from psurf_core.scene import AreaLight, PointLight, SphereOccluder
 
 Z_MAX = 4.0
-W, H = 8, 6
-
-
-def _scene(lights, occluders=(), g=0.0, sigma_s=0.8, sigma_a=0.2, kmin=1, kmax=1):
-    cam = Camera(np.array([0.0, 0.0, -4.0]), np.zeros(3), np.array([0.0, 1.0, 0.0]), 40.0, W, H)
-    phase = Phase("hg", g) if g else Phase()
-    med = Medium(-np.ones(3), np.ones(3), sigma_s, sigma_a, phase)
-    return Scene(cam, med, tuple(lights), tuple(occluders), kmin, kmax)
-
-
-POINT = PointLight(np.array([0.3, 0.4, 0.1]), np.array([4.0, 2.0, 1.0]), np.array([0.0, 1.0, 0.0]))
-# Tilted parallelogram, so that no axis alignment hides an orientation bug.
-AREA = AreaLight(
-    corner=np.array([-0.35, 0.55, 0.0]),
-    edge_u=np.array([0.6, 0.1, 0.0]),
-    edge_v=np.array([0.0, 0.15, 0.5]),
-    radiance=np.array([3.0, 2.0, 1.5]),
-)
 # Large and facing (slightly tilted) down from the top: phase-sampled rays hit it often.
 BIG_AREA = AreaLight(
     corner=np.array([-0.7, 0.9, -0.7]),
@@ -55,15 +29,10 @@ BIG_AREA = AreaLight(
     edge_v=np.array([0.0, 0.1, 1.4]),
     radiance=np.array([1.0, 1.5, 2.0]),
 )
-# A closed tetrahedron (outward, counter-clockwise faces): convex, so a front-facing point is
-# always visible from an outside vertex and the brute force needs no visibility term.
-_TV = np.array([[0.2, -0.5, 0.3], [0.6, -0.5, 0.3], [0.4, -0.5, 0.65], [0.4, -0.15, 0.45]])
-_TF = [(0, 3, 1), (1, 3, 2), (2, 3, 0), (0, 1, 2)]
-TETRA = MeshLight(np.array([_TV[list(f)] for f in _TF]), np.array([2.0, 2.5, 3.0]))
 
 
 def test_tetra_faces_outward():
-    out = TETRA.triangles.mean(axis=1) - _TV.mean(axis=0)
+    out = TETRA.triangles.mean(axis=1) - TETRA_VERTICES.mean(axis=0)
     assert np.all(np.einsum("ij,ij->i", TETRA.normals, out) > 0)
 
 
@@ -106,7 +75,7 @@ def _assert_agree(m, se, ref, ref_se=0.0, mask=None, label=""):
     ids=["iso", "hg", "hg-sphere", "iso-sphere-behind"],
 )
 def test_point_single_scatter_matches_quadrature(g, occluders, seed=11):
-    scene = _scene([POINT], occluders, g=g)
+    scene = make_scene([POINT], occluders, g=g)
     bl = blockers_of(scene)
     m_per = 8000
     rays = camera_rays(scene, spp=m_per, jitter=False, blockers=bl)
@@ -123,14 +92,14 @@ def test_point_single_scatter_matches_quadrature(g, occluders, seed=11):
 
 
 def test_quadrature_converged_and_point_only():
-    scene = _scene([POINT], (SphereOccluder(np.array([-0.1, 0.0, -0.3]), 0.3),), g=0.5)
+    scene = make_scene([POINT], (SphereOccluder(np.array([-0.1, 0.0, -0.3]), 0.3),), g=0.5)
     r = camera_rays(scene, spp=1, jitter=False)
     a = single_scatter_quadrature(scene, r.o, r.d, r.s_min, r.s_max, n=4096)
     b = single_scatter_quadrature(scene, r.o, r.d, r.s_min, r.s_max, n=16384)
     # Shadow edges cost accuracy (panel rule), but far below any test's standard error.
     np.testing.assert_allclose(a, b, rtol=2e-3, atol=1e-6)
     with pytest.raises(ValueError):
-        sa = _scene([AREA])
+        sa = make_scene([TILTED_AREA])
         single_scatter_quadrature(sa, r.o, r.d, r.s_min, r.s_max)
 
 
@@ -196,10 +165,10 @@ def _clear_rays(scene, pts, bl, count=5):
     return one, pick
 
 
-@pytest.mark.parametrize("light", [AREA, TETRA], ids=["parallelogram", "tetra-mesh"])
+@pytest.mark.parametrize("light", [TILTED_AREA, TETRA], ids=["parallelogram", "tetra-mesh"])
 @pytest.mark.parametrize("g", [0.0, 0.5], ids=["iso", "hg"])
 def test_emitter_single_scatter_matches_brute_force(light, g, seed=5):
-    scene = _scene([light], g=g)
+    scene = make_scene([light], g=g)
     bl = blockers_of(scene)
     one, pick = _clear_rays(scene, _light_points(light), bl)
     rays = camera_rays(scene, spp=40000, jitter=False, pixels=one.pixel[pick], blockers=bl)
@@ -214,7 +183,7 @@ def test_each_strategy_matches_brute_force_dense(strategy, seed=8):
     """Single scattering from the tetrahedron in a dense medium (st = 4.5), where the
     guided distances and the equiangular vertices differ most from free flight: every
     strategy against the quadrature (the default one in the test above)."""
-    scene = _scene([TETRA], g=0.3, sigma_s=4.0, sigma_a=0.5)
+    scene = make_scene([TETRA], g=0.3, sigma_s=4.0, sigma_a=0.5)
     bl = blockers_of(scene)
     one, pick = _clear_rays(scene, _light_points(TETRA), bl)
     rays = camera_rays(scene, spp=20000, jitter=False, pixels=one.pixel[pick], blockers=bl)
@@ -241,7 +210,8 @@ def test_guided_direction_density_is_the_sampled_one(sigma_t):
     weight is bounded by 1 / GUIDE_PHASE, so the mean has a finite variance)."""
     from psurf_core import reference_guide as R
 
-    scene = _scene([POINT, TETRA, AREA], g=0.4, sigma_s=0.9 * sigma_t, sigma_a=0.1 * sigma_t)
+    scene = make_scene([POINT, TETRA, TILTED_AREA], g=0.4, sigma_s=0.9 * sigma_t,
+                       sigma_a=0.1 * sigma_t)
     plan = R.Plan.of(scene, "mis")
     assert plan.directions
     x = _vertices()
@@ -264,7 +234,7 @@ def test_guided_distance_density_is_the_sampled_one(sigma_t):
     for distances drawn from the guided mixture, iff dens is its density over Tr."""
     from psurf_core import reference_guide as R
 
-    scene = _scene([POINT, TETRA], sigma_s=0.9 * sigma_t, sigma_a=0.1 * sigma_t)
+    scene = make_scene([POINT, TETRA], sigma_s=0.9 * sigma_t, sigma_a=0.1 * sigma_t)
     plan = R.Plan.of(scene, "mis")
     assert plan.distances
     rng = np.random.default_rng(2)
@@ -288,16 +258,16 @@ def test_point_and_area_light_together(seed=6):
     single-light oracles (point quadrature with the parallelogram as a blocker)."""
     # Above the downward-facing parallelogram: its shadow falls across the medium below.
     point = PointLight(np.array([-0.05, 0.9, 0.25]), np.array([1.0, 2.0, 3.0]), POINT.axis)
-    scene = _scene([point, AREA], g=0.3)
+    scene = make_scene([point, TILTED_AREA], g=0.3)
     bl = blockers_of(scene)
-    one, pick = _clear_rays(scene, np.concatenate([_light_points(AREA), point.position[None]]),
-                            bl)
+    one, pick = _clear_rays(
+        scene, np.concatenate([_light_points(TILTED_AREA), point.position[None]]), bl)
     rays = camera_rays(scene, spp=40000, jitter=False, pixels=one.pixel[pick], blockers=bl)
     m, se = _stats(reference_pass(scene, rays, np.random.default_rng(seed), bl), pick.size)
-    point_only = _scene([point], g=0.3)
+    point_only = make_scene([point], g=0.3)
     quad = single_scatter_quadrature(point_only, one.o[pick], one.d[pick], one.s_min[pick],
                                      one.s_max[pick], blockers=bl)
-    brute = np.array([_brute_force_single(scene, AREA, one.o[i], one.d[i], one.s_min[i],
+    brute = np.array([_brute_force_single(scene, TILTED_AREA, one.o[i], one.d[i], one.s_min[i],
                                           one.s_max[i]) for i in pick])
     # The parallelogram really shadows the point light somewhere along these rays.
     unblocked = single_scatter_quadrature(point_only, one.o[pick], one.d[pick], one.s_min[pick],
@@ -310,7 +280,7 @@ def test_point_and_area_light_together(seed=6):
 def test_strategies_agree(seed=100):
     """NEE alone, phase-sampled hits alone, equiangular vertices alone and every MIS
     combination (guided or not) estimate the same integral."""
-    scene = _scene([BIG_AREA, TETRA], g=0.5)
+    scene = make_scene([BIG_AREA, TETRA], g=0.5)
     bl = blockers_of(scene)
     one = camera_rays(scene, spp=1, jitter=False, blockers=bl)
     # NEE by area has infinite variance where a vertex can approach an emitter: compare only
@@ -399,7 +369,7 @@ def test_multiple_scatter_matches_naive_walk(k, seed=40):
     64 x 2500 rays pin down to 3.5 %; measured in issue 15's work).
     """
     occ = (SphereOccluder(np.array([0.1, 0.35, 0.2]), 0.25),)
-    scene = _scene([BIG_AREA], occ, g=0.4, sigma_s=1.2, sigma_a=0.2, kmin=k, kmax=k)
+    scene = make_scene([BIG_AREA], occ, g=0.4, sigma_s=1.2, sigma_a=0.2, kmin=k, kmax=k)
     bl = blockers_of(scene)
     rays = camera_rays(scene, spp=2500, jitter=False, blockers=bl)
     ref = _stats(reference_pass(scene, rays, np.random.default_rng(seed), bl), W * H)
@@ -410,7 +380,7 @@ def test_multiple_scatter_matches_naive_walk(k, seed=40):
 
 def test_scatter_windows_add_up(seed=20):
     """Images of K=1 and K=2 alone sum to the [1, 2] image (and K=2 is not zero)."""
-    base = _scene([AREA, TETRA], g=0.3, sigma_s=1.5, sigma_a=0.3)
+    base = make_scene([TILTED_AREA, TETRA], g=0.3, sigma_s=1.5, sigma_a=0.3)
     bl = blockers_of(base)
     m_per = 3000
     res = {}
@@ -430,7 +400,7 @@ def test_roulette_unbiased_and_image(seed=1):
     Only paths with at least 12 events are compared: the roulette weights act on all of them
     (dropping the ``1/q`` would cost them a factor ``0.9^4`` or less).
     """
-    base = _scene([BIG_AREA], sigma_s=2.85, sigma_a=0.15)  # albedo 0.95: deep paths matter
+    base = make_scene([BIG_AREA], sigma_s=2.85, sigma_a=0.15)  # albedo 0.95: deep paths matter
     bl = blockers_of(base)
     cap = MAX_TRACE_DEPTH  # the unlimited tracer stops there too
     rays = camera_rays(base, spp=4000, rng=np.random.default_rng(seed), blockers=bl)

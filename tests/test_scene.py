@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import copy
-import json
-import math
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
+from toml_writer import dumps
 
 from psurf_core.scene import (
     AreaLight,
@@ -27,45 +26,6 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
 BLOB = SCENES / "meshes" / "blob.obj"
 BUNDLED = sorted(SCENES.glob("*.toml"))
-
-
-# --------------------------------------------------------------------------- TOML writer
-
-
-def _val(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(_val(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_val(x)}" for k, x in v.items()) + " }"
-    raise TypeError(v)
-
-
-def _is_aot(v) -> bool:
-    return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)
-
-
-def dumps(doc: dict) -> str:
-    """Tiny TOML writer: top-level scalars, then [tables] and [[arrays of tables]]."""
-    lines = [f"{k} = {_val(v)}" for k, v in doc.items() if not (isinstance(v, dict) or _is_aot(v))]
-    for k, v in doc.items():
-        if isinstance(v, dict):
-            lines += ["", f"[{k}]"] + [f"{kk} = {_val(vv)}" for kk, vv in v.items()]
-        elif _is_aot(v):
-            for item in v:
-                lines += ["", f"[[{k}]]"] + [f"{kk} = {_val(vv)}" for kk, vv in item.items()]
-    return "\n".join(lines) + "\n"
 
 
 BASE = {

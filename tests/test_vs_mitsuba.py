@@ -32,20 +32,12 @@ from psurf_core.camera import camera_rays, clip_rays, pixel_directions, project
 from psurf_core.constants import MAX_TRACE_DEPTH
 from psurf_core.geometry import blockers_of
 from psurf_core.reference import reference_image, single_scatter_quadrature
-from psurf_core.scene import (
-    AreaLight,
-    BoxOccluder,
-    Camera,
-    Medium,
-    MeshLight,
-    Phase,
-    PointLight,
-    Scene,
-    SphereOccluder,
-)
+from psurf_core.scene import BoxOccluder, Scene, SphereOccluder
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import mitsuba_scene as ms  # noqa: E402
+from small_scenes import POINT, TETRA, make_scene  # noqa: E402
+from small_scenes import TILTED_AREA as AREA  # noqa: E402 - benchmarks/mitsuba_conventions uses T.AREA
 
 #: Aggregate (sum over the image, per channel) z bound, and the per-pixel bound: 192 pixels x 3
 #: channels with standard errors from 32 passes (Student-t tails) need a wider per-pixel one.
@@ -53,18 +45,6 @@ Z_MAX = 4.0
 Z_PIXEL = 5.0
 W, H = 16, 12
 
-POINT = PointLight(np.array([0.3, 0.4, 0.1]), np.array([4.0, 2.0, 1.0]), np.array([0.0, 1.0, 0.0]))
-# Tilted parallelogram (its edges are not orthogonal) and a closed tetrahedron, as in
-# test_reference.py, so that no axis alignment hides an orientation bug.
-AREA = AreaLight(
-    corner=np.array([-0.35, 0.55, 0.0]),
-    edge_u=np.array([0.6, 0.1, 0.0]),
-    edge_v=np.array([0.0, 0.15, 0.5]),
-    radiance=np.array([3.0, 2.0, 1.5]),
-)
-_TV = np.array([[0.2, -0.5, 0.3], [0.6, -0.5, 0.3], [0.4, -0.5, 0.65], [0.4, -0.15, 0.45]])
-_TF = [(0, 3, 1), (1, 3, 2), (2, 3, 0), (0, 1, 2)]
-TETRA = MeshLight(np.array([_TV[list(f)] for f in _TF]), np.array([2.0, 2.5, 3.0]))
 OCCLUDERS = (
     SphereOccluder(np.array([-0.3, 0.0, -0.4]), 0.25),
     BoxOccluder(np.array([0.3, 0.2, -0.6]), np.array([0.6, 0.4, -0.3])),
@@ -73,12 +53,10 @@ OCCLUDERS = (
 
 def _scene(lights, occluders=(), g=0.0, sigma_s=0.8, sigma_a=0.2, kmin=1, kmax=1,
            camera=(-4.0, 40.0)):
-    """The test scene; ``camera`` is (z of the position on the axis, vertical fov)."""
+    """The test scene at W x H; ``camera`` is (z of the position on the axis, vertical fov)."""
     z, fov = camera
-    cam = Camera(np.array([0.0, 0.0, z]), np.zeros(3), np.array([0.0, 1.0, 0.0]), fov, W, H)
-    phase = Phase("hg", g) if g else Phase()
-    med = Medium(-np.ones(3), np.ones(3), sigma_s, sigma_a, phase)
-    return Scene(cam, med, tuple(lights), tuple(occluders), kmin, kmax)
+    return make_scene(lights, occluders, g, sigma_s, sigma_a, kmin, kmax, size=(W, H),
+                      position=(0.0, 0.0, z), fov=fov)
 
 
 # --------------------------------------------------------------------------- no Mitsuba needed

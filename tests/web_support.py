@@ -179,3 +179,39 @@ def compare(img: np.ndarray, name: str, tmp_path) -> float:
     ssim = structural_similarity(ref, img, channel_axis=2, data_range=255)
     assert ssim >= SSIM_MIN, f"{name}: SSIM {ssim:.3f} < {SSIM_MIN} (new picture: {out})"
     return ssim
+
+
+def page_screenshot(out: str, scene: str = "point.toml",
+                    estimators: str = "mis:plane-t1t2+planes,beams", stage: int = 3,
+                    passes: int = 12) -> None:
+    """The README's picture of the page: ``serve SCENE --estimators ...`` in headless
+    Chromium (the tests' set-up, 1600x1000), at stage ``stage`` (0-4) once the inspected
+    estimator has ``passes`` passes, the render then paused, written to ``out`` (PNG)."""
+    from selenium.webdriver.common.by import By
+
+    def probe(d):
+        text = d.find_element(By.ID, "probe").get_attribute("textContent")
+        stage_, _, passes_, _, busy, token = text.split("|")
+        return {"stage": stage_, "passes": int(passes_), "busy": busy == "true",
+                "token": int(token)}
+
+    with Server(scene, "--estimators", estimators, "--max-sessions", "1", "--spare", "0") as s:
+        d = browser()
+        try:
+            d.get(s.url)
+            wait_for(lambda: probe(d)["passes"] >= passes and not probe(d)["busy"],
+                     READY_TIMEOUT + 300, f"{passes} passes")
+            d.find_element(By.ID, "play").click()  # pause: the numbers stop moving
+            token = probe(d)["token"]
+            d.find_element(By.ID, f"stage-{stage}").click()
+            wait_for(lambda: probe(d)["token"] > token and not probe(d)["busy"], 120,
+                     "the stage")
+            stable_png(d, "view3d")
+            stable_png(d, "panels")
+            d.save_screenshot(out)
+        finally:
+            d.quit()
+
+
+if __name__ == "__main__":  # python tests/web_support.py docs/web.png
+    page_screenshot(sys.argv[1] if len(sys.argv) > 1 else "docs/web.png")

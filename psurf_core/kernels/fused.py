@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..binning import _chunk_bounds, _spans, screen_rects
+from ..memo import memo
 from ..records import dtype_of, flat, widths
 from ..scene import medium_row
 from ..techniques.base import Hits
@@ -113,7 +114,7 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
     if blk is None:
         return None
     cs, rt, rid = ray_table(rays, ctx.scene.camera.n_pixels)
-    if np.count_nonzero(np.diff(cs)) <= 64:
+    if memo(rays, "pixels with medium", lambda: np.count_nonzero(np.diff(cs))) <= 64:
         return None
     w, key, shares = None, None, np.ones((1, 2))
     if mis is not None:
@@ -153,7 +154,8 @@ class _Run:
                       c(paths.w, float), c(paths.t, float), lights, shares, emit)
         # DEFER only arises from triangle meshes: without one, no full rows are needed
         # unless they are asked for.
-        self.full_rows = emit or bool(np.any(blk["kind"] == 3))
+        self.full_rows = emit or memo(ctx.blockers, "has mesh",
+                                      lambda: bool(np.any(blk["kind"] == 3)))
 
     def spans(self):
         cam, med = self.ctx.scene.camera, self.ctx.scene.medium

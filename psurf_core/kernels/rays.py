@@ -7,6 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..memo import memo
 from ..records import Vec, table
 
 
@@ -20,7 +21,8 @@ class RayRow(NamedTuple):
 
 
 def ray_table(rays, n_pixels: int):
-    """The rays with medium (``s_max > s_min``) in pixel order.
+    """The rays with medium (``s_max > s_min``) in pixel order (built once per ``rays``:
+    every technique of a pass walks the same table).
 
     Returns
     -------
@@ -31,6 +33,10 @@ def ray_table(rays, n_pixels: int):
     rid : (U,) int64
         Index of each row in ``rays``.
     """
+    return memo(rays, ("table", n_pixels), lambda: _ray_table(rays, n_pixels))
+
+
+def _ray_table(rays, n_pixels):
     rid = np.flatnonzero(rays.s_max > rays.s_min)
     cs = np.zeros(n_pixels + 1, np.int64)
     np.cumsum(np.bincount(rays.pixel[rid], minlength=n_pixels), out=cs[1:])

@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..constants import BOUNDS_PAD, PARALLEL_EPS, SHADOW_EPS
+from ..memo import memo
 from ..records import Vec, load, table
 from .jit import inline, kernel
 
@@ -169,7 +170,12 @@ def status(a, b, blockers):
 def blocker_table(blockers):
     """The compiled code's view of :class:`~psurf_core.geometry.Blockers`: (N,)
     :class:`BlockerRow` records, one per entry of ``blockers.bounds``, or ``None`` when the
-    blockers carry no bounds (then the numpy path runs)."""
+    blockers carry no bounds (then the numpy path runs). Built once per ``blockers``
+    (read-only)."""
+    return memo(blockers, "table", lambda: _blocker_table(blockers))
+
+
+def _blocker_table(blockers):
     if blockers.bounds is None or blockers.planes is None:
         return None
     n_all = 0 if blockers.empty else blockers.bounds.shape[0]

@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..binning import _NEAR, _SPAN_MARGIN, screen_rects
+from ..memo import memo
 from ..records import Vec
 from .jit import inline, kernel
 from .threads import PIECES_PER_THREAD, on_threads, thread_count
@@ -329,14 +330,29 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
 
 
 def camera_row(cam) -> CameraRow:
-    """The :class:`CameraRow` of a :class:`~psurf_core.scene.Camera`."""
+    """The :class:`CameraRow` of a :class:`~psurf_core.scene.Camera` (built once per
+    camera)."""
 
-    def v(a):
-        return tuple(float(x) for x in a)
+    def build():
+        def v(a):
+            return tuple(float(x) for x in a)
 
-    th = float(np.tan(np.radians(cam.fov_y) / 2.0))
-    return CameraRow(v(cam.position), v(cam.forward), v(cam.right), v(cam.image_up), th,
-                     cam.width / cam.height, float(cam.width), float(cam.height))
+        th = float(np.tan(np.radians(cam.fov_y) / 2.0))
+        return CameraRow(v(cam.position), v(cam.forward), v(cam.right), v(cam.image_up), th,
+                         cam.width / cam.height, float(cam.width), float(cam.height))
+
+    return memo(cam, "row", build)
+
+
+def _clip_planes(cam, box):
+    """(7, 4) rows ``(n, offset)`` (keep ``x . n >= offset``): the medium box's six faces and
+    the camera's near plane."""
+    bmin, bmax = (np.asarray(b, float) for b in box)
+    fwd = np.asarray(cam.forward, float)
+    eye = np.eye(3)
+    return np.array([row for ax in range(3)
+                     for row in (np.append(eye[ax], bmin[ax]), np.append(-eye[ax], -bmax[ax]))]
+                    + [np.append(fwd, float(fwd @ np.asarray(cam.position, float)) + _NEAR)])
 
 
 #: Non-empty once the threaded path's kernel (:func:`_row_spans_into`) is loaded in this
@@ -359,12 +375,7 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
     Many primitives are cut into consecutive pieces that numba's threads clip and project,
     then write the spans of, in primitive order (each primitive's spans depend on it alone):
     the same spans for any thread count."""
-    bmin, bmax = (np.asarray(b, float) for b in box)
-    fwd = np.asarray(cam.forward, float)
-    eye = np.eye(3)
-    planes = np.array([row for ax in range(3)
-                       for row in (np.append(eye[ax], bmin[ax]), np.append(-eye[ax], -bmax[ax]))]
-                      + [np.append(fwd, float(fwd @ np.asarray(cam.position, float)) + _NEAR)])
+    planes = memo(cam, ("clip planes", tuple(np.ravel(box))), lambda: _clip_planes(cam, box))
     camv = camera_row(cam)
     c = np.ascontiguousarray
     lo, hi, hull = c(lo, float), c(hi, float), c(hull, float)

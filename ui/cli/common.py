@@ -135,6 +135,13 @@ def resolution(text: str) -> tuple[int, int]:
     return pair(text, "W,H (two integers >= 8: the image's width and height in pixels)", 8)
 
 
+def add_resolution_flag(parser) -> None:
+    """``--resolution W,H`` on ``parser`` (``args.resolution``: ``(W, H)`` or None), worded
+    alike in every command that renders a scene; :func:`with_resolution` applies it."""
+    parser.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
+                        help="render at W x H pixels instead of the scene's [camera] resolution")
+
+
 # --------------------------------------------------------------------------- checks
 
 

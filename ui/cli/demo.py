@@ -16,6 +16,11 @@ comparison headless and writes into ``--out``:
 and prints what it measured. Nothing here states a result: the numbers are those of this run
 on this machine (a faster preset simply shows a better ratio). Compiling the kernels (numba,
 the first run of a clone) is done before the clock starts and reported apart.
+``--min-scatter``/``--max-scatter`` set the scatter range as on ``render`` and ``compare``.
+
+For the window, the render worker and the stage inspector are started
+(:func:`start_background`) before VTK is imported: they load their kernels while the window
+opens.
 
 The reference: ``scenes/<scene>_reference.npz`` when it exists and matches the scene
 (``scenes/showcase_reference.npz``, a long path-traced render), or ``--reference FILE.npz``;
@@ -30,6 +35,7 @@ import textwrap
 
 from .common import (
     CliError,
+    add_resolution_flag,
     load_reference,
     nonneg_int,
     note,
@@ -39,8 +45,9 @@ from .common import (
     png_writer,
     positive_float,
     positive_int,
-    resolution,
+    scatter_int,
     with_resolution,
+    with_scatter,
     write_all,
 )
 from .limits import check_memory, load_scene_within
@@ -90,8 +97,11 @@ def add_demo_parser(sub) -> argparse.ArgumentParser:
     d.add_argument("--pixel", default=None, type=pixel, metavar="X,Y",
                    help="the pixel the stages inspect (X column from the left, Y row from "
                         "the top; default the centre)")
-    d.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
-                   help="render at W x H pixels instead of the scene's resolution")
+    add_resolution_flag(d)
+    d.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
+                   help="override the scene's [render] min_scatter (>= 1)")
+    d.add_argument("--max-scatter", type=scatter_int, default=None, metavar="B",
+                   help="override the scene's [render] max_scatter (>= A, or -1: unlimited)")
     d.add_argument("--time", dest="seconds", type=positive_float, default=DEMO_SECONDS,
                    metavar="SECONDS",
                    help=f"headless: seconds per estimator (equal time; default {DEMO_SECONDS:g})")
@@ -168,9 +178,36 @@ def _reference(args, scene_path: str, scene):
         return None
 
 
+def _display() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def start_background(scene, specs: list, args):
+    """The window's background processes, started before VTK is imported: ``(prog,
+    inspector)``. The render worker and the inspector then start their interpreters and load
+    their kernels while this process imports VTK and opens the window (seconds each on this
+    machine), so the first render arrives sooner."""
+    from psurf_core.estimators import parse_estimator
+    from psurf_core.render import RenderSettings
+
+    from .inspector import Inspector
+    from .progressive import Progressive
+
+    # The specs as the window's panels name them (``ui.views.window.panel_specs``).
+    shown = [parse_estimator(spec, scene).spec for spec in specs]
+    prog = Progressive(scene, shown, RenderSettings(photons=args.photons, spp=1),
+                       seed=args.seed, workers=1, breakdown=False)
+    try:
+        inspector = Inspector(1)
+    except BaseException:
+        prog.close()
+        raise
+    return prog, inspector
+
+
 def _interactive_run():
     """``ui.views.interactive.run`` when a display and pyvista can open a window, else None."""
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    if not _display():
         return None
     try:
         from ui.views._vtk import pv
@@ -187,7 +224,8 @@ def cmd_demo(args) -> int:
     """Run ``demo``; 0, or raises CliError (exit 2)."""
     scene_path = args.scene or DEMO_SCENE
     # Meshes are checked before they load; the sizes before anything is allocated.
-    scene = with_resolution(load_scene_within(scene_path, None), args.resolution)
+    scene = with_scatter(with_resolution(load_scene_within(scene_path, None), args.resolution),
+                         args.min_scatter, args.max_scatter)
     specs = _specs(args, scene)
     _check_memory(scene, specs, args.photons)
     cam = scene.camera
@@ -196,13 +234,16 @@ def cmd_demo(args) -> int:
         raise CliError(f"--pixel {x},{y}: outside the {cam.width}x{cam.height} image "
                        f"(X in 0..{cam.width - 1}, Y in 0..{cam.height - 1})")
     ref = _reference(args, scene_path, scene)
-    if not args.no_window:
+    if not args.no_window and _display():
+        prog, inspector = start_background(scene, specs, args)
         run = _interactive_run()
         if run is not None:
             run(scene_path, estimators=specs, reference=ref.source if ref else None,
-                pixel_xy=args.pixel, photons=args.photons, resolution=args.resolution,
-                inspect=args.inspect, seed=args.seed)
+                pixel_xy=args.pixel, photons=args.photons, inspect=args.inspect,
+                seed=args.seed, scene=scene, prog=prog, inspector=inspector)
             return 0
+        prog.close()  # no window after all (VTK cannot open one): the pictures instead
+        inspector.close()
     if os.path.exists(args.out) and not os.path.isdir(args.out):
         raise CliError(f"--out {args.out}: exists and is not a directory")
     try:
@@ -363,7 +404,7 @@ def _stages(window, scene_path, specs, prog, reference, args) -> list:
 
     state = window.build_state(scene_path, specs[0], args.seed, args.pixel, args.photons,
                                render_passes=False, estimators=specs, inspect=args.inspect,
-                               resolution=args.resolution)
+                               scene=prog.job.scene)
     state.prog, state.panels, state.reference = prog, PanelView(), reference
     state.acc = prog.runs[state.inspected].acc
     plotter = window.make_plotter(FIGURE_SIZE, off_screen=True)

@@ -54,6 +54,7 @@ from .common import (
     PROG,
     CliError,
     OutputWriteError,
+    add_resolution_flag,
     check_output,
     nonempty_path,
     nonneg_float,
@@ -67,7 +68,6 @@ from .common import (
     positive_float,
     positive_int,
     progress,
-    resolution,
     scatter_int,
     shrink,
     sigint_deferred,
@@ -129,8 +129,7 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
                    help="estimator name (list below)")
     r.add_argument("--photons", type=positive_int, default=DEFAULT_PHOTONS, metavar="N",
                    help=f"photons per pass (default {DEFAULT_PHOTONS}; the reference ignores it)")
-    r.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
-                   help="render at W x H pixels instead of the scene's [camera] resolution")
+    add_resolution_flag(r)
     r.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
     budget = r.add_mutually_exclusive_group()

@@ -111,11 +111,18 @@ def _viewport_px(plotter, cell) -> tuple:
 def compose_title(plotter: pv.Plotter, state) -> None:
     """Title (bold), hint (right) and caption (wrapped to the width, shrunk if it must be)."""
     plotter.subplot(*CELL_TITLE)
-    plotter.renderer.clear_actors()
-    plotter.renderer.set_background("white")
     w, h = _viewport_px(plotter, CELL_TITLE)
     n = stage_index(state.stage) + 1
     hint = state.hint or f"stage {n}/{len(STAGES)}   n / p: step   h: help"
+    # Measuring and wrapping the caption is most of this part's cost, and it changes only
+    # with the stage, the hint or the size: the same title is left as it is.
+    key = (state.stepper.title, state.stepper.caption, hint, round(w), round(h),
+           pt(FONT_SMALL))
+    if getattr(state, "title_key", None) == key and "caption" in plotter.renderer.actors:
+        return
+    state.title_key = key
+    plotter.renderer.clear_actors()
+    plotter.renderer.set_background("white")
     hw = scene_view.text_extent(hint, pt(FONT_SMALL))[0]
     title_px = fit_font(state.stepper.title, pt(FONT_TITLE), (0.97 * w - hw - 20, h),
                         bold=True)
@@ -146,9 +153,10 @@ def _compose_3d(plotter: pv.Plotter, state, camera=None,
     stage = state.stage
     if with_scene:
         before = set(plotter.renderer.actors)
-        scene_view.add_scene(plotter, scene, pixel_xy=state.pixel_xy,
-                             labels=_scene_labels(stage))
+        scene_view.add_scene(plotter, scene, labels=_scene_labels(stage))
         state.scene_actors = set(plotter.renderer.actors) - before
+    # Drawn apart from the scene, so a moved pixel keeps the scene's actors.
+    scene_view.add_picked_pixel(plotter, scene, state.pixel_xy)
     if ins is None:
         add_text(plotter, "computing...", 0.5, 0.97, FONT, name="computing", align="center",
                  colour="#444444")
@@ -243,14 +251,16 @@ def compose_3d(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None
     cam_pos = [tuple(map(float, v)) for v in cam_pos]
     ren = plotter.renderer
     _clear_bars(plotter, ren)
-    # The scene (box, lights, occluders, camera) stays when only the stage changed.
-    key3d = (id(state.scene), state.pixel_xy, _scene_labels(state.stage))
+    # The scene (box, lights, occluders, camera) stays when only the stage or the pixel
+    # changed. (``ren.actors`` builds a dict on every access: read it once.)
+    key3d = (id(state.scene), _scene_labels(state.stage))
+    actors = ren.actors
     reuse = (state.scene_key == key3d and bool(state.scene_actors)
-             and all(n in ren.actors for n in state.scene_actors))
+             and all(n in actors for n in state.scene_actors))
     if reuse:
-        for name in [n for n in ren.actors if n not in state.scene_actors]:
-            if name in ren.actors:
-                plotter.remove_actor(name, render=False)
+        stale = [a for n, a in actors.items() if n not in state.scene_actors]
+        if stale:  # by actor, not by name: a name also removes every 'name-...' actor
+            ren.remove_actor(stale, render=False)
     else:
         ren.clear_actors()
     ren.set_background(scene_view.BACKGROUND)
@@ -271,17 +281,40 @@ def compose_panel(plotter: pv.Plotter, state, text: str | None = None) -> bool:
     if lay is not None and state_layout(plotter, state, text) != lay:
         return False
     plotter.subplot(*CELL_PANEL)
-    plotter.renderer.clear_actors()
-    plotter.renderer.set_background("#f2f2f2")
+    ren = plotter.renderer
     w, h = _viewport_px(plotter, CELL_PANEL)
     line = 1.2 * pt(FONT_SMALL)
     size = fit_font(text, pt(FONT_SMALL), (0.96 * w, h - 1.4 * line - 8), mono=True)
-    add_text(plotter, text, 0.02, 1.0 - 6 / max(h, 1), FONT_SMALL, size_px=size,
-             mono=True, name="panel")
-    if state.message:
-        msize = fit_font(state.message, pt(FONT_SMALL), (0.96 * w, 1.3 * line), bold=True)
+    msize = (fit_font(state.message, pt(FONT_SMALL), (0.96 * w, 1.3 * line), bold=True)
+             if state.message else 0)
+    key = (text, size, state.message, msize, round(w), round(h))
+    actors = ren.actors
+    panel, message = actors.get("panel"), actors.get("message")
+    if panel is not None and getattr(state, "panel_key", None) == key:
+        state.panel_changed = False  # the timer renders this part only when it changed
+        return True
+    state.panel_key, state.panel_changed = key, True
+    if panel is None or getattr(state, "panel_size", None) != (round(w), round(h)):
+        ren.clear_actors()
+        ren.set_background("#f2f2f2")
+        panel = message = None
+    state.panel_size = (round(w), round(h))
+    # In place where the actors exist (a frame changes the pass count in the text): a new
+    # text actor per frame costs more than a new string in the old one.
+    if panel is None:
+        add_text(plotter, text, 0.02, 1.0 - 6 / max(h, 1), FONT_SMALL, size_px=size,
+                 mono=True, name="panel")
+    else:
+        panel.SetInput(text)
+        panel.GetTextProperty().SetFontSize(size)
+    if state.message and message is not None:
+        message.SetInput(state.message)
+        message.GetTextProperty().SetFontSize(msize)
+    elif state.message:
         add_text(plotter, state.message, 0.02, (1.2 * line + 4) / max(h, 1),
                  FONT_SMALL, size_px=msize, name="message", bold=True)
+    elif message is not None:
+        ren.remove_actor(message, render=False)
     return True
 
 
@@ -326,12 +359,15 @@ def _compose_progressive(plotter: pv.Plotter, state) -> None:
                       scale=state.var_scale, inspected=state.inspected)
     plotter.subplot(*CELL_RENDER)
     ren = plotter.renderer
+    actors = ren.actors
     for name in ("coverage-cells", "coverage-outline"):
-        if name in ren.actors:
+        if name in actors:
             plotter.remove_actor(name, render=False)
+    if not (state.coverage and state.coverage_mask is not None and state.mode == "render"):
+        return
     cam = state.scene.camera
     tiles = controls.image_tiles(ren, cam.width, cam.height)
-    if state.coverage and state.coverage_mask is not None and tiles and state.mode == "render":
+    if tiles:
         _, origin, spacing = tiles[min(state.inspected, len(tiles) - 1)]
         coverage_view.add_coverage(plotter, state.coverage_mask, origin=origin,
                                      spacing=spacing)

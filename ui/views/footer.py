@@ -64,6 +64,7 @@ class Controls:
         rw.AddRenderer(self.overlay)
         self.hot: list = []  # (action, text actor)
         self.props: list = []  # everything draw() added (labels, backdrops)
+        self._key = None  # what the footer was last drawn from
         self.sliders: dict = {}
         self.sliders_on = False
         self.rows = 1
@@ -80,9 +81,6 @@ class Controls:
         from .palette import chip_colours
         from .scene_view import FONT_SMALL, pt
 
-        for a in self.props:
-            self.overlay.RemoveViewProp(a)
-        self.hot, self.props = [], []
         size = pt(0.9 * FONT_SMALL)
         row_h = self._row_h()
         chips = []  # (action or None, text, background, colour, frame)
@@ -112,6 +110,15 @@ class Controls:
             elif action == "inspect" and len(specs) < 2:
                 continue
             buttons.append((action, f" {label} ", BUTTON_COLOUR, "#ffffff", "#ffffff"))
+        # Laying out some thirty text actors (each measured) is tens of milliseconds: the same
+        # footer in the same window is left as it is.
+        key = (tuple(chips), tuple(buttons), tuple(self.p.window_size), size, row_h)
+        if key == getattr(self, "_key", None) and self.props:
+            return self.rows
+        self._key = key
+        for a in self.props:
+            self.overlay.RemoveViewProp(a)
+        self.hot, self.props = [], []
         # The backdrop first (drawn under the chips), as tall as the rows once they are known.
         backdrop = self._backdrop(self.rows * row_h)
         self.props.append(backdrop)

@@ -17,31 +17,28 @@ from __future__ import annotations
 import os
 import time
 
-from psurf_core.render import render, render_pass
+from psurf_core.render import render
 
 from . import controls, primitives_view
 from ._vtk import pv
 from .footer import Controls
 from .interactive_params import EstimatorControls, MediumControls, Pointer, Recorder
+from .interactive_timer import Ticker
 from .layout import next_focus
 from .panel_modes import MODE_HELP, next_mode
-from .script import SCRIPT_ENV, SIZE_ENV, play_step
+from .script import SCRIPT_ENV, SIZE_ENV, launch_time
 from .stepper import DEFAULT_PHOTONS, DEFAULT_SIZE
 from .window import (
-    CELL_3D,
     HELP,
     ViewState,
     accept_results,
     attach_progressive,
     build_state,
     compose,
-    compose_images,
-    compose_panel,
     load_reference_image,
     make_plotter,
     panel_specs,
     reinspect,
-    software_opengl,
     update_coverage,
 )
 
@@ -51,23 +48,35 @@ __all__ = ["App", "SCRIPT_ENV", "SIZE_ENV", "run"]
 def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: int = 0,
         pixel_xy=None, photons: int = DEFAULT_PHOTONS, size=DEFAULT_SIZE,
         workers: int = 1, reference: str | None = None, resolution=None,
-        inspect=None) -> None:
+        inspect=None, scene=None, prog=None, inspector=None) -> None:
     """Open the interactive window on ``scene_path`` (blocks until it is closed).
 
     ``estimators`` (specs) are rendered side by side at equal time in a background process
     (default: ``[estimator]``); the stages inspect ``inspect`` (default: the first MIS set).
     ``reference`` (an ``app.py render`` .npz of the scene) adds relMSE under each render;
-    ``resolution`` ``(W, H)`` overrides the scene's.
+    ``resolution`` ``(W, H)`` overrides the scene's. ``scene`` (loaded, e.g. with another
+    scatter range), ``prog`` and ``inspector`` (background processes started before this
+    module was imported, :func:`ui.cli.demo.start_background`) replace loading and starting
+    them here.
 
     With :data:`ui.views.script.SCRIPT_ENV` set, its steps are played through the window's
     own event path (synthetic key presses and mouse clicks), one per timer tick, and ``quit``
     closes it.
     """
-    state = build_state(scene_path, estimator, seed, pixel_xy, photons, render_passes=False,
-                        estimators=estimators, inspect=inspect, resolution=resolution,
-                        inspector_workers=1)
-    state.reference = load_reference_image(reference, state.scene)
-    attach_progressive(state, workers=workers)
+    try:
+        state = build_state(scene_path, estimator, seed, pixel_xy, photons,
+                            render_passes=False, estimators=estimators, inspect=inspect,
+                            resolution=resolution, inspector_workers=1, scene=scene,
+                            inspector=inspector)
+        state.reference = load_reference_image(reference, state.scene)
+        # Breakdowns (per technique, per K) double a pass's cost: only while a mode shows
+        # them (``next_mode``).
+        attach_progressive(state, workers=workers, prog=prog, breakdown=False)
+    except BaseException:  # bad input: the processes started for the window stop too
+        for started in (prog, inspector):
+            if started is not None:
+                started.close()
+        raise
     if os.environ.get(SIZE_ENV):
         size = tuple(int(v) for v in os.environ[SIZE_ENV].split(","))
     plotter = make_plotter(size)
@@ -83,7 +92,7 @@ def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: in
         app.close()
 
 
-class App(Pointer, EstimatorControls, MediumControls, Recorder):
+class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
     """Key, mouse, widget and timer bindings of the interactive window (what a click picks, the
     inspected estimator and its members, the medium / photon controls and the recorder are
     :mod:`ui.views.interactive_params`'s).
@@ -115,6 +124,9 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
         self._busy_shown = 0.0
         self._t0 = time.perf_counter()
         self.scripted, self._said = False, ""
+        self._launched = launch_time()  # None: no time stamps printed
+        self._render_due = False  # a tick composed a new stage; the next one renders it
+        self._milestones: set = set()
 
     @property
     def members(self) -> tuple:
@@ -163,7 +175,12 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
         # image panel does not also rotate or pan; elsewhere the event goes on unchanged.
         self._tags["left"] = ii.AddObserver("LeftButtonPressEvent", self._on_left, 10.0)
         self._tags["right"] = ii.AddObserver("RightButtonPressEvent", self._on_right, 10.0)
-        p.add_timer_event(max_steps=10**9, duration=self.TICK_MS, callback=self.tick)
+        # The timer calls tick() and nothing else: pyvista's add_timer_event renders the whole
+        # window after every callback (the 3D view too: tens to hundreds of milliseconds in
+        # software OpenGL, five times a second, when the tick itself drew nothing or only the
+        # image panels). A tick renders what it changed itself.
+        self._tags["timer"] = ii.AddObserver("TimerEvent", self._on_timer)
+        p.iren.create_timer(self.TICK_MS, repeating=True)
 
     def _actions(self) -> dict:
         return {"previous": self.previous, "next": self.next, "play": self.toggle_play,
@@ -198,6 +215,14 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
         s.sliders_on = self.controls.sliders_on
 
     def redraw(self, keep_camera: bool = True) -> None:
+        """Compose every part of the window for the state and render it."""
+        self.compose_all(keep_camera)
+        self.p.render()
+        self._render_due = False
+        self._stamp()
+
+    def compose_all(self, keep_camera: bool = True) -> None:
+        """Compose every part of the window for the state, without rendering it."""
         # Once a window is shown pyvista renders after every added actor; composing a stage
         # adds dozens, so rendering is held until the whole frame is built (as in lecture mode).
         held = self.p.suppress_rendering
@@ -210,7 +235,6 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
                 self.controls.show_help(HELP, self.s.show_help)
         finally:
             self.p.suppress_rendering = held
-        self.p.render()
 
     # ---------------------------------------------------------------- stages
     def next(self) -> None:
@@ -336,6 +360,7 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
             s.message = "panel modes need the progressive renderer (the window)"
         else:
             s.mode = next_mode(s.mode)
+            s.prog.set_breakdown(s.mode != "render")
             s.message = f"panels: {s.mode}: {MODE_HELP[s.mode]}"
         self.redraw()
 
@@ -362,80 +387,3 @@ class App(Pointer, EstimatorControls, MediumControls, Recorder):
             self.s.inspector.close()
         if self.controls is not None:
             self.controls.close()
-
-    # ---------------------------------------------------------------- timer
-    def tick(self, _step=None) -> None:
-        """The timer: a resize, a script step, a rested parameter change, the inspector's
-        answers and the render worker's passes (never waits for any of them)."""
-        if not self._gl_checked:  # the first tick: the window and its GL context exist now
-            self._gl_checked = True
-            if software_opengl(self.p):
-                # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every
-                # full render ~3-5x dearer (benchmarks/ui_frames.py); the window stays
-                # responsive without it. Screenshots keep it: they are figures, not frames.
-                self.p.ren_win.SetMultiSamples(0)
-                self.p.render()
-        if tuple(self.p.window_size) != self._size:  # resized: lay everything out again
-            self._size = tuple(self.p.window_size)
-            self.redraw()
-        if self.script:
-            play_step(self, self.script.pop(0))
-            self.scripted = True
-        if self.scripted and self.s.message != self._said:  # a script's log of the status line
-            self._said = self.s.message
-            print(f"window: message: {self._said}", flush=True)
-        params = self.pending.due(self.clock())
-        if params is not None:
-            self.apply_params(params)
-            return
-        s = self.s
-        if accept_results(s):  # a new inspection (or coverage): the stage is drawn anew
-            self.redraw()
-        elif s.inspector is not None and s.inspector.busy("pixel") is not None:
-            now = time.monotonic()
-            if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
-                self._busy_shown = now
-                self._frame()
-        if s.prog is not None:
-            # Non-blocking: merges what the worker finished (at most POLL_BUDGET seconds).
-            got = s.prog.poll()
-            notes = s.prog.take_notices()
-            if notes:
-                s.message = notes[-1]
-            if got or notes:
-                s.acc = s.prog.runs[s.inspected].acc
-                if s.prog.errors:
-                    s.message = f"render error: {s.prog.errors[-1].splitlines()[-1]}"
-                self._frame()
-            return
-        if not s.playing:
-            return
-        s.acc.add(render_pass(s.scene, s.estimator, s.acc.n, s.seed, s.settings))
-        s.message = f"playing: {s.acc.n} passes"
-        self._frame()
-
-    def _frame(self) -> None:
-        """Redraw the image panels and the stage panel (the 3D view and its camera stay)."""
-        held = self.p.suppress_rendering
-        self.p.suppress_rendering = True
-        try:
-            compose_images(self.p, self.s)
-            fits = compose_panel(self.p, self.s)
-        finally:
-            self.p.suppress_rendering = held
-        if not fits:  # the panel's text needs another layout: everything is laid out again
-            self.redraw()
-            self._record_frame()
-            return
-        # Only the image panels and the stage text changed. The 3D view is the costliest part
-        # of a frame (tens to hundreds of ms in software OpenGL, measured by
-        # benchmarks/ui_frames.py), so it keeps last frame's pixels: VTK renders into its own
-        # framebuffer, and a renderer that is not drawn leaves its viewport as it was. Any
-        # other render (camera moves, stage changes, resizes) draws everything again.
-        view3d = self.p.renderers[self.p.renderers.loc_to_index(CELL_3D)]
-        view3d.SetDraw(False)
-        try:
-            self.p.render()
-        finally:
-            view3d.SetDraw(True)
-        self._record_frame()

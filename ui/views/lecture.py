@@ -211,7 +211,10 @@ class Lecture:
                 "space": self.toggle_play, "s": self.save}
         for k, fn in keys.items():
             p.add_key_event(k, fn)
-        p.add_timer_event(max_steps=10**9, duration=250, callback=self.tick)
+        # tick() alone (it renders what it drew): pyvista's add_timer_event would render the
+        # whole window four times a second, also while nothing plays.
+        p.iren.interactor.AddObserver("TimerEvent", lambda _obj, _event: self.tick())
+        p.iren.create_timer(250, repeating=True)
 
 
 def _screen_size():

@@ -98,6 +98,9 @@ class Tile:
     pixel: bool = False
     frame: bool = False
     colour: str | None = None  # the technique's (its title is set on it), or None
+    #: What the picture was made from (None: unknown): a tile whose key is the one drawn
+    #: last time in its place is not uploaded again (``PanelView``).
+    key: tuple | None = None
 
 
 @dataclass
@@ -173,14 +176,33 @@ def _k_of(layout, k) -> int:
         layout.k_min if k is None else int(k))
 
 
+#: Per-estimator results of recent frames: ``(what, id(acc), passes, ...) -> (acc, value)``.
+#: A frame after one estimator's new pass recomputes that estimator's pictures only (the
+#: entry keeps its accumulator alive, so its id cannot be reused by another one meanwhile).
+_SEEN: dict = {}
+
+
+def _per_run(what: str, acc: Welford, extra, make):
+    key = (what, id(acc), acc.n, extra)
+    hit = _SEEN.get(key)
+    if hit is not None and hit[0] is acc:
+        return hit[1]
+    if len(_SEEN) >= 64:
+        _SEEN.clear()
+    value = make()
+    _SEEN[key] = (acc, value)
+    return value
+
+
 def _render_areas(ents, reference, clim, scale: VarScale | None, inspected) -> list:
     from ui.cli.equal_time import compare_rows
 
     rows = compare_rows(ents, reference)
-    means = [e.acc.mean for e in ents]
-    exposure = min(im.auto_exposure(m) for m in means)
-    var_means = [(e.acc.variance.mean(axis=-1) if e.acc.variance.ndim == 3
-                  else e.acc.variance) / max(e.acc.n, 1) for e in ents]
+    exposure = min(_per_run("exposure", e.acc, None, lambda e=e: im.auto_exposure(e.acc.mean))
+                   for e in ents)
+    var_means = [_per_run("var", e.acc, None, lambda e=e: (
+        e.acc.variance.mean(axis=-1) if e.acc.variance.ndim == 3 else e.acc.variance)
+        / max(e.acc.n, 1)) for e in ents]
     have = [e.acc.n >= 2 for e in ents]
     if clim is None:
         shown = [v for v, ok in zip(var_means, have, strict=True) if ok] or var_means
@@ -188,20 +210,26 @@ def _render_areas(ents, reference, clim, scale: VarScale | None, inspected) -> l
                 else im.log_range(np.concatenate([v.ravel() for v in shown])))
     lo, hi = clim
     many = len(ents) > 1
-    timed = rows[0]["equal"] == "time"
+    # Screenshots report every run's seconds as 0 (equal passes); a live render reports
+    # seconds, but not yet for an estimator still waiting for its first pass (it has a note:
+    # "compiling kernels (first run)", "waiting for the first pass...").
+    timed = rows[0]["equal"] == "time" or any(e.seconds > 0 or (e.acc.n == 0 and e.note)
+                                              for e in ents)
     tiles_a, tiles_b = [], []
     for i, (e, row, v) in enumerate(zip(ents, rows, var_means, strict=True)):
         mark = inspected is not None and i == inspected and many
         took = f", {e.seconds:.1f} s" if e.seconds > 0 else ""
         second = e.note if e.acc.n == 0 and e.note else f"{plural(e.acc.n, 'pass')}{took}"
-        tiles_a.append(Tile(f"{e.label}\n{second}", rgb=im.tone_map(e.acc.mean, exposure),
-                            pixel=True, frame=mark))
+        rgb = _per_run("rgb", e.acc, exposure, lambda e=e: im.tone_map(e.acc.mean, exposure))
+        tiles_a.append(Tile(f"{e.label}\n{second}", rgb=rgb, pixel=True, frame=mark,
+                            key=("rgb", id(e.acc), e.acc.n, exposure)))
         title = f"{e.label}: {_fmt_ratio(row['ratio'])}" if many else e.label
         if e.acc.n < 2:
             title = f"{e.label}: {'needs 2 passes' if e.acc.n else 'no pass yet'}"
         if row["relmse"] is not None:
             title += f"\nrelMSE {row['relmse']:.2g}"
-        tiles_b.append(Tile(title, values=v, clim=(lo, hi), pixel=True, frame=mark))
+        tiles_b.append(Tile(title, values=v, clim=(lo, hi), pixel=True, frame=mark,
+                            key=("var", id(e.acc), e.acc.n, lo, hi)))
     if many:
         first = ents[0].label
         head_a = ("renders at equal time, one exposure" if timed

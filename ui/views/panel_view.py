@@ -67,8 +67,12 @@ def _outline_points(pixel_xy, height: int, s: float, x0: float, y0: float) -> np
     """(4, 3) corners of the outline of pixel ``pixel_xy`` on a tile at ``(x0, y0)`` drawn
     ``s`` viewport pixels per image pixel."""
     # at least a few screen pixels around it: a 160x120 render's pixel is ~2 pixels wide
-    pts = np.array(pixel_outline(pixel_xy, height, max(0.6, px(4) / max(s, 1e-6))).points,
-                   dtype=float)
+    # (the corners of ``pixel_outline``, without building a mesh: this runs every frame)
+    g = max(0.6, px(4) / max(s, 1e-6))
+    x, y = pixel_xy
+    yb = height - y - 1
+    pts = np.array([[x - g, yb - g, 0.05], [x + 1 + g, yb - g, 0.05],
+                    [x + 1 + g, yb + 1 + g, 0.05], [x - g, yb + 1 + g, 0.05]])
     return pts * [s, s, 1.0] + [x0, y0, 0.0]
 
 
@@ -263,12 +267,17 @@ class PanelView:
         # in-place update: values, ranges, texts
         parts["header"].SetInput(header)
         parts["header"].GetTextProperty().SetFontSize(header_size)
-        for tile, (img, _actor, text), (title, tsize) in zip(area.tiles, parts["tiles"], fitted,
-                                                             strict=True):
-            text.SetInput(title)
+        drawn = parts.setdefault("keys", [None] * len(area.tiles))
+        for i, (tile, (img, _actor, text), (title, tsize)) in enumerate(
+                zip(area.tiles, parts["tiles"], fitted, strict=True)):
+            if text.GetInput() != title:  # a changed text is rasterized again: only then
+                text.SetInput(title)
             text.GetTextProperty().SetFontSize(tsize)
+            if tile.key is not None and drawn[i] == tile.key:
+                continue  # the same picture: no new texture
             img.point_data["rgb"][:] = tile_rgb(tile)[::-1].reshape(h * w, 3)
             img.Modified()
+            drawn[i] = tile.key
         if parts["bar"] is not None and area.bar is not None:
             lo, hi = next(t.clim for t in area.tiles if t.values is not None)
             keyed = parts["bar_actor"]
@@ -283,7 +292,9 @@ class PanelView:
     def _alive(plotter, ren, parts) -> bool:
         # The window may have cleared the subplot or every scalar bar since the last frame.
         bar_ok = parts["bar"] is None or parts["bar"] in plotter.scalar_bars
-        return bar_ok and all(name in ren.actors for name in parts["names"])
+        # ``ren.actors`` builds a dict of every actor on each access: once, not per name.
+        names = set(ren.actors)
+        return bar_ok and all(name in names for name in parts["names"])
 
     def _build(self, plotter, tag, area: Area, vw, vh, top_px, bottom_px, label_px, grid_rcs,
                hw, pixel_xy) -> dict:

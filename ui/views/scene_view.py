@@ -324,6 +324,16 @@ def frustum_lines(scene: Scene, pixel_xy=None):
     return edges, rect, pix
 
 
+def add_picked_pixel(plotter: pv.Plotter, scene: Scene, pixel_xy) -> None:
+    """The picked pixel's quad on the camera's image plane (the actor ``picked-pixel``;
+    drawn apart from :func:`add_scene` so that a moved pixel keeps the scene's actors)."""
+    if pixel_xy is None:
+        return
+    pix = frustum_lines(scene, pixel_xy)[2]
+    plotter.add_mesh(pix, color=HIGHLIGHT, lighting=False, name="picked-pixel",
+                     reset_camera=False)
+
+
 def add_scene(plotter: pv.Plotter, scene: Scene, *, pixel_xy=None, box_opacity=0.07,
               labels=True) -> None:
     """Draw the medium box (translucent, with edges), lights, occluders and the camera."""

@@ -133,6 +133,12 @@ class ViewState:
     #: The 3D scene's actors (kept while only the stage changes) and what they show.
     scene_actors: set = field(default_factory=set)
     scene_key: tuple | None = None
+    #: What the title and the stage panel were last drawn from (``compose``: a part whose
+    #: key is unchanged is left as it is); whether the last ``compose_panel`` changed it.
+    title_key: tuple | None = None
+    panel_key: tuple | None = None
+    panel_size: tuple | None = None
+    panel_changed: bool = True
 
     @property
     def stage(self) -> str:
@@ -196,7 +202,7 @@ def build_state(scene_path: str, estimator: str = "planes", seed: int = 0, pixel
                 hit: int | None = None, pass_index: int = 0,
                 coverage: bool = False, render_passes: bool = True, *,
                 estimators=None, inspect=None, resolution=None,
-                inspector_workers: int = 0) -> ViewState:
+                inspector_workers: int = 0, scene=None, inspector=None) -> ViewState:
     """Load the scene, render ``passes`` passes and inspect the pixel in pass ``pass_index``.
 
     ``estimators`` (specs, display order; default ``[estimator]``) are the image panels;
@@ -205,13 +211,17 @@ def build_state(scene_path: str, estimator: str = "planes", seed: int = 0, pixel
     the accumulator empty (the progressive worker renders the passes).
     ``inspector_workers=1`` computes the inspection in a background process (the window):
     :attr:`ViewState.inspection` is None until :func:`accept_results` takes it.
+    ``scene`` (a loaded scene, e.g. with the command line's scatter range; ``resolution`` is
+    then ignored) replaces loading ``scene_path``; ``inspector`` (a started
+    ``ui.cli.inspector.Inspector``) replaces starting one.
 
     Raises ``SceneError`` / ``UnknownTechnique`` / ``ValueError`` for bad input.
     """
     from ui.cli.common import with_resolution
     from ui.cli.inspector import Inspector
 
-    scene = with_resolution(load_scene(scene_path), resolution)
+    if scene is None:
+        scene = with_resolution(load_scene(scene_path), resolution)
     specs = tuple(estimators) if estimators else (str(estimator),)
     ests = [parse_estimator(s, scene) for s in specs]
     inspected = _resolve_inspect(inspect, list(specs), ests)
@@ -233,7 +243,8 @@ def build_state(scene_path: str, estimator: str = "planes", seed: int = 0, pixel
                    settings=settings, pixel_xy=tuple(int(v) for v in pixel_xy),
                    acc=acc, inspection=None, initial_passes=passes,
                    pass_index=int(pass_index), specs=specs, inspected=inspected,
-                   base_scene=scene, inspector=Inspector(inspector_workers))
+                   base_scene=scene,
+                   inspector=inspector if inspector is not None else Inspector(inspector_workers))
     st.stepper.go(stage)
     reinspect(st, keep_hit=True)
     accept_results(st)
@@ -394,13 +405,28 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
 
 
 def attach_progressive(state: ViewState, workers: int = 1, breakdown: bool = True,
-                       max_seconds: float | None = None) -> None:
+                       max_seconds: float | None = None, prog=None) -> None:
     """Render the panels progressively (``ui.cli.progressive``: ``workers`` background processes,
-    0 = in the timer tick) into ``image_panels.PanelView`` tiles; starts playing."""
+    0 = in the timer tick) into ``image_panels.PanelView`` tiles; starts playing.
+
+    ``prog``: a ``Progressive`` started already on this state's scene, estimators, settings
+    and seed (the window starts its worker before VTK is imported: the first picture comes
+    sooner); it must render what the panels show.
+    """
     from ui.cli.progressive import Progressive
 
-    state.prog = Progressive(state.scene, panel_specs(state), state.settings, seed=state.seed,
-                             workers=workers, breakdown=breakdown, max_seconds=max_seconds)
+    if prog is not None:
+        prog.set_breakdown(breakdown)
+        j = prog.job
+        if (list(j.specs), j.settings, j.seed) != (panel_specs(state), state.settings,
+                                                   state.seed):
+            raise ValueError(f"the started render ({', '.join(j.specs)}, seed {j.seed}) is "
+                             "not what the window shows")
+        state.prog = prog
+    else:
+        state.prog = Progressive(state.scene, panel_specs(state), state.settings,
+                                 seed=state.seed, workers=workers, breakdown=breakdown,
+                                 max_seconds=max_seconds)
     state.panels = image_panels.PanelView()
     state.acc = state.prog.runs[state.inspected].acc
     state.playing = True

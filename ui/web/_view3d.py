@@ -8,6 +8,8 @@ view; trame-pyvista / trame-vtk are imported here only.
 
 from __future__ import annotations
 
+import asyncio
+
 from ui.views import scene_view
 from ui.views._vtk import pv
 
@@ -40,7 +42,45 @@ def remote_view(plotter: pv.Plotter, **kwargs):
     zooms on the server)."""
     from trame_pyvista import PyVistaRemoteView
 
-    return PyVistaRemoteView(plotter, interactive_ratio=1, still_ratio=1, **kwargs)
+    view = PyVistaRemoteView(plotter, interactive_ratio=1, still_ratio=1, **kwargs)
+    # trame-pyvista streams a frame (render, JPEG, send) from every ``plotter.render()``, and
+    # pyvista calls it for each actor a stage adds, even while rendering is held: 15 frames
+    # per step, seconds with ten sessions on two cores. The page pushes one frame per change
+    # (``view.update()`` once the stage is composed); the mouse's frames are trame-vtk's own.
+    plotter.clear_on_render_callbacks()
+    return view
+
+
+#: Seconds to wait for the encoder before leaving a frame to trame-vtk's own retry.
+ENCODE_WAIT = 2.0
+
+
+async def deliver_frame(server, plotter: pv.Plotter) -> None:
+    """Send the 3D view's newest frame as soon as it is encoded.
+
+    ``view.update()`` renders the frame and hands it to VTK's encoder threads; its reply
+    holds the previous JPEG, marked stale, and trame-vtk asks again only 0.5 s later. Here
+    the view is asked every few milliseconds (no new render: the encoder's output is looked
+    up) and the frame goes out once it is encoded, typically 10-50 ms later.
+    """
+    from trame_vtk.modules.vtk.protocols import vtkWebPublishImageDelivery
+
+    root = server.protocol
+    delivery = next((p for p in (root.getLinkProtocols() if root else ())
+                     if isinstance(p, vtkWebPublishImageDelivery)), None)
+    if delivery is None:
+        return
+    window = plotter.render_window
+    vid = str(delivery.get_global_id(window))
+    loop = asyncio.get_running_loop()
+    t0 = loop.time()
+    while loop.time() - t0 < ENCODE_WAIT:
+        await asyncio.sleep(0.005)
+        if vid not in delivery.tracking_views:
+            return  # no page watches the view (yet)
+        delivery.push_render(vid)  # sent when encoded; the stale flag is refreshed here
+        if not delivery.app.GetHasImagesBeingProcessed(window):
+            return
 
 
 def screenshot(plotter: pv.Plotter):

@@ -47,7 +47,8 @@ class Session:
     ready: asyncio.Event = field(default_factory=asyncio.Event)
     sockets: int = 0
     started: float = field(default_factory=time.monotonic)
-    last_closed: float | None = None
+    #: Last sign of its tab: given to it, ready, a page request, a websocket closed.
+    last_seen: float = field(default_factory=time.monotonic)
     assigned: bool = False
     failed: str = ""
 
@@ -117,6 +118,7 @@ class Launcher:
             text = line.decode(errors="replace").strip()
             if text.startswith("psurf-web-ready "):
                 s.port = int(text.split()[1])
+                s.last_seen = time.monotonic()  # its tab is still loading "starting"
                 s.ready.set()
         await s.proc.wait()
         if not s.ready.is_set():
@@ -158,10 +160,11 @@ class Launcher:
         while True:
             now = time.monotonic()
             for s in list(self.sessions.values()):
-                if s.assigned and s.sockets == 0:
-                    since = s.last_closed if s.last_closed is not None else s.started
-                    if now - since > self.grace + (START_TIMEOUT if s.port is None else 0):
-                        await self._stop(s)
+                # Counted from the last sign of the tab, not from the start: a session that
+                # took longer than the grace to start must live until its page connects.
+                if s.assigned and s.sockets == 0 and now - s.last_seen > self.grace + (
+                        START_TIMEOUT if s.port is None else 0):
+                    await self._stop(s)
             await self._keep_spares()
             await asyncio.sleep(period)
 
@@ -182,8 +185,7 @@ class Launcher:
                      None)
         s = spare or await self._spawn()
         s.assigned = True
-        s.last_closed = None
-        s.started = time.monotonic()
+        s.started = s.last_seen = time.monotonic()
         self._spawn_task(self._keep_spares())
         raise web.HTTPFound(f"/s/{s.sid}/")
 
@@ -194,6 +196,10 @@ class Launcher:
                                   "ready": sum(1 for s in ss if s.assigned and s.port),
                                   "spares": sum(1 for s in ss if not s.assigned)})
 
+    async def slash(self, request: web.Request) -> web.StreamResponse:
+        """``/s/<id>``: to ``/s/<id>/`` (the page's relative links need the slash)."""
+        raise web.HTTPFound(f"/s/{request.match_info['sid']}/")
+
     async def proxy(self, request: web.Request) -> web.StreamResponse:
         """``/s/<id>/...``: this tab's session (HTTP and websocket)."""
         s = self.sessions.get(request.match_info["sid"])
@@ -201,6 +207,7 @@ class Launcher:
             return _page("session ended", "This session has ended (its tab was closed, or "
                          "the server restarted). <a href='/'>Open a new one</a>.", status=404)
         tail = request.match_info["tail"]
+        s.last_seen = time.monotonic()
         if not s.ready.is_set():
             if tail in ("", "index.html"):
                 return _page("starting", "Starting your session (a few seconds)...",
@@ -245,7 +252,7 @@ class Launcher:
                   file=sys.stderr)
         finally:
             s.sockets -= 1
-            s.last_closed = time.monotonic()
+            s.last_seen = time.monotonic()
         return ws
 
     def app(self) -> web.Application:
@@ -253,7 +260,7 @@ class Launcher:
         app = web.Application(client_max_size=MAX_MESSAGE)
         app.router.add_get("/", self.new_session)
         app.router.add_get("/status", self.status)
-        app.router.add_get("/s/{sid}", lambda r: web.HTTPFound(f"/s/{r.match_info['sid']}/"))
+        app.router.add_get("/s/{sid}", self.slash)
         app.router.add_route("*", "/s/{sid}/{tail:.*}", self.proxy)
 
         async def startup(_app):

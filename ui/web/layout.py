@@ -7,10 +7,10 @@ triggers by name; no logic (that is :mod:`ui.web.page`).
     | psurf   scene [v] [upload]   estimators [A,B     ]   status / compiling...       |
     +----------------------------------------+-----------------------------------------+
     | 1 Trace  2 Create  3 Intersect  ...    |  panels: render | techniques | bounces   |
-    | caption                                |  [render + variance picture: click]     |
-    | [ 3D view: rotate, zoom ]              |  members  [x] a  [ ] b                   |
-    |                                        |  sigma_s  sigma_a  g  photons (sliders) |
-    | < prev  next >   hit [ ]  pass , .      |  Evaluate / Reconstruct table, numbers  |
+    | [ 3D view: rotate, zoom ]              |  [render + variance picture: click]     |
+    |                                        |  members  [x] a  [ ] b                   |
+    | < prev  next >  hit  pass  paths  cam  |  sigma_s  sigma_a  g  photons (sliders) |
+    | stage title, caption                   |  Evaluate / Reconstruct table, numbers  |
     +----------------------------------------+-----------------------------------------+
 """
 
@@ -31,17 +31,21 @@ _UPLOAD_JS = (
     f"' bytes, more than the {MAX_UPLOAD // 1024} KiB an uploaded scene may have') : "
     f"{_F}.text().then(t => trigger('upload', [{_F}.name, t])))"
 )
-#: The window's keys n / p (next / previous stage) anywhere on the page but in a text box.
+#: The window's keys anywhere on the page but in a text box: n / p (next / previous stage),
+#: + / - (twice / half as many photon subpaths drawn; the stage text names them).
+_KEYS = {"n": "trigger('step', [1])", "p": "trigger('step', [-1])",
+         "+": "trigger('paths', [2])", "=": "trigger('paths', [2])",
+         "-": "trigger('paths', [0.5])"}
 _KEYS_JS = (
-    "window.addEventListener('keydown', e => (e.target.tagName == 'INPUT' || busy) ? 0 : "
-    "(e.key == 'n' ? trigger('step', [1]) : (e.key == 'p' ? trigger('step', [-1]) : 0)))"
+    "window.addEventListener('keydown', e => (e.target.tagName == 'INPUT' || busy) ? 0 : ("
+    + " : ".join(f"e.key == '{k}' ? {js}" for k, js in _KEYS.items()) + " : 0))"
 )
 _PICK_JS = ("trigger('pick', [$event.offsetX, $event.offsetY, $event.target.clientWidth, "
             "$event.target.clientHeight])")
 
 
 def _header(layout) -> None:
-    layout.title.set_text("psurf: photon surfaces, step by step")
+    layout.title.set_text("psurf")  # the scene is in its box, the tab's title says both
     with layout.toolbar:
         v.VSpacer()
         v.VSelect(v_model=("scene_name",), items=("scene_items",), label="scene",
@@ -70,28 +74,40 @@ def _left(view_plotter):
                       id="view3d"):
             view = _view3d.remote_view(view_plotter)
         with html.Div(classes="d-flex align-center flex-wrap mt-1"):
-            v.VBtn("◀ previous (p)", click="trigger('step', [-1])", size="small",
-                   disabled=("busy",), id="prev", classes="mr-1")
-            v.VBtn("next (n) ▶", click="trigger('step', [1])", size="small", disabled=("busy",),
-                   id="next", classes="mr-3")
-            v.VBtn("hit −", click="trigger('hit', [-1])", size="small", disabled=("busy",))
-            v.VBtn("hit +", click="trigger('hit', [1])", size="small", disabled=("busy",),
-                   classes="mr-3")
-            v.VBtn("pass −", click="trigger('pass', [-1])", size="small", disabled=("busy",))
-            v.VBtn("pass +", click="trigger('pass', [1])", size="small", disabled=("busy",),
-                   classes="mr-3")
-            v.VBtn("reset camera", click="trigger('reset_camera')", size="small")
+            # (label, trigger, id, gap after); narrow padding: one row at 790 px
+            for label, js, bid, gap in (
+                    ("◀ previous (p)", "trigger('step', [-1])", "prev", "mr-1"),
+                    ("next (n) ▶", "trigger('step', [1])", "next", "mr-2"),
+                    ("hit −", "trigger('hit', [-1])", "hit-prev", ""),
+                    ("hit +", "trigger('hit', [1])", "hit-next", "mr-2"),
+                    ("pass −", "trigger('pass', [-1])", "pass-prev", ""),
+                    ("pass +", "trigger('pass', [1])", "pass-next", "mr-2"),
+                    ("paths −", "trigger('paths', [0.5])", "paths-less", ""),
+                    ("paths +", "trigger('paths', [2])", "paths-more", "mr-2")):
+                v.VBtn(label, click=js, size="small", disabled=("busy",), id=bid,
+                       classes=f"px-2 {gap}")
+            v.VBtn("reset camera", click="trigger('reset_camera')", size="small",
+                   classes="px-2", id="reset-camera")
+        # Under the buttons, so they stay put while the caption's length changes.
+        html.Div("{{ title }}", classes="text-subtitle-2 mt-1", id="stage-title")
+        html.Div("{{ caption }}", classes="text-body-2", id="caption")
     return view
+
+
+#: The sliders: state key, label with the value (a JavaScript expression), range, step.
+SLIDERS = (
+    ("sigma_s", "'σs ' + Number(sigma_s).toFixed(2)", 0.01, 5.0, 0.01),
+    ("sigma_a", "'σa ' + Number(sigma_a).toFixed(2)", 0.0, 5.0, 0.01),
+    ("g", "'g ' + Number(g).toFixed(2)", -0.9, 0.9, 0.05),
+    ("photons_log2", "'photons ' + Math.round(2 ** photons_log2)", 6.64, 15.97, 0.25),
+)
 
 
 def _sliders() -> None:
     with v.VRow(dense=True):
-        for key, label, lo, hi, step in (("sigma_s", "σs", 0.01, 5.0, 0.01),
-                                         ("sigma_a", "σa", 0.0, 5.0, 0.01),
-                                         ("g", "g", -0.9, 0.9, 0.05),
-                                         ("photons_log2", "log2 photons", 6.64, 15.97, 0.25)):
-            with v.VCol(cols=6, classes="py-0"):
-                v.VSlider(v_model=(key,), label=label, min=lo, max=hi, step=step,
+        for key, label, lo, hi, step in SLIDERS:
+            with v.VCol(cols=6, classes="py-0", id=f"slider-{key}-row"):
+                v.VSlider(v_model=(key,), label=(label,), min=lo, max=hi, step=step,
                           density="compact", hide_details=True, thumb_label=True,
                           disabled=("busy",), id=f"slider-{key}")
 

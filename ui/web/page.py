@@ -53,6 +53,7 @@ class Page:
         self.dirty = False  # passes arrived that the panels do not show yet
         self.budget = RENDER_BUDGET  # worker seconds before the render pauses by itself
         self.view = None  # the remote view widget (set by main)
+        self.frame_task = None  # the newest frame's delivery (push_view)
 
     # ------------------------------------------------------------------ state
     def initial_state(self, scene_items, scene_name) -> None:
@@ -69,10 +70,12 @@ class Page:
 
     def push_texts(self) -> None:
         t = self.m.texts()
-        self.state.update({k: t[k] for k in ("stage_index", "caption", "pixel", "panel_text",
-                                             "evaluate", "reconstruct", "members", "mode",
-                                             "passes", "estimators", "spec")})
+        self.state.update({k: t[k] for k in ("stage_index", "title", "caption", "pixel",
+                                             "panel_text", "evaluate", "reconstruct",
+                                             "members", "mode", "passes", "estimators",
+                                             "spec")})
         self.state.stage = t["stage"]
+        self.state.trame__title = f"psurf: {self.m.label}"  # the browser tab's title
         self.state.status = self.status_text()
 
     def status_text(self) -> str:
@@ -92,7 +95,26 @@ class Page:
         self.m.draw_3d(keep_camera=keep_camera)
         if self.view is not None:
             self.view.update()
+            self._deliver_frame()
         self.state.view_token += 1
+
+    def _deliver_frame(self) -> None:
+        """The new frame to the page once encoded (:func:`ui.web._view3d.deliver_frame`)."""
+        try:
+            asyncio.get_running_loop()
+        except RuntimeError:  # building the page: the first frame goes when a page connects
+            return
+        if self.frame_task is not None and not self.frame_task.done():
+            self.frame_task.cancel()  # an older frame's wait: this one supersedes it
+        self.frame_task = asyncio.ensure_future(self._frame())
+
+    async def _frame(self) -> None:
+        from . import _view3d
+
+        try:
+            await _view3d.deliver_frame(self.server, self.m.view)
+        except Exception:  # trame-vtk's own retry still sends it
+            traceback.print_exc(file=sys.stderr)
 
     def push_panels(self) -> None:
         import base64
@@ -163,14 +185,21 @@ def _eval_columns():
     return EVALUATE_COLUMNS
 
 
-def guarded(page: Page, fn):
-    """``fn`` (sync or async) with its exceptions shown on the page as one line."""
+def guarded(page: Page, fn, *, clears: bool = True):
+    """``fn`` (sync or async) with its exceptions shown on the page as one line.
+
+    ``clears``: the call is a new action of the student's, so the previous action's error
+    line goes (callbacks of state changes, which the server's own updates also fire, clear
+    it themselves when they act).
+    """
 
     @functools.wraps(fn)
     async def run(*args, **kwargs):
         try:
             async with page.lock:
                 page.touched()
+                if clears:
+                    page.state.error = ""
                 out = fn(*args, **kwargs)
                 if asyncio.iscoroutine(out):
                     out = await out
@@ -212,6 +241,12 @@ def bind(page: Page) -> None:
         page.push_texts()
         page.push_view()
 
+    @trigger("paths")
+    def paths(factor):
+        m.paths(float(factor))
+        page.push_texts()
+        page.push_view()
+
     @trigger("pass")
     async def pass_(d):
         if m.step_pass(int(d)):
@@ -246,6 +281,7 @@ def bind(page: Page) -> None:
                          int(round(2.0 ** float(st.photons_log2)))).clamped()
         if p == m.params.clamped():
             return  # the server's own update of the sliders, or no real change
+        st.error = ""
         m.set_params(p)
         await page.compute(m.inspect)
         q = m.params
@@ -253,7 +289,7 @@ def bind(page: Page) -> None:
                    "photons_log2": math.log2(q.photons)})
         page.push_all()
 
-    guarded_apply = guarded(page, apply_sliders)
+    guarded_apply = guarded(page, apply_sliders, clears=False)
     pending = {"task": None, "waiting": False}
 
     @st.change("sigma_s", "sigma_a", "g", "photons_log2")
@@ -305,7 +341,7 @@ def bind(page: Page) -> None:
 
     def on_change(*keys):
         def deco(fn):
-            g = guarded(page, fn)
+            g = guarded(page, fn, clears=False)
             st.change(*keys)(g)
             return fn
         return deco
@@ -314,6 +350,7 @@ def bind(page: Page) -> None:
     def go(stage_index, **_):
         i = int(stage_index if stage_index is not None else 0)
         if STAGES[i] != m.s.stage:
+            st.error = ""
             m.go(STAGES[i])
             page.push_texts()
             page.push_view()
@@ -321,6 +358,7 @@ def bind(page: Page) -> None:
     @on_change("mode")
     def mode(mode, **_):
         if mode and mode != m.s.mode:
+            st.error = ""
             m.set_mode(mode)
             page.push_panels()
 
@@ -330,6 +368,7 @@ def bind(page: Page) -> None:
             return
         if scene_name not in scenes.bundled():
             return  # an earlier upload's label: nothing to reopen
+        st.error = ""
         path = scenes.bundled_path(scene_name)
         await page.compute(lambda: m.open_scene(path, scene_name))
         st.scene_items = scenes.bundled()

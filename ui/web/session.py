@@ -88,7 +88,6 @@ def main(argv=None) -> int:
     add_downloads(page)
     ui, page.view = layout.build(server, session.view)
     page.push_all(keep_camera=False)
-    ui.title.set_text(f"psurf: {label}")
 
     @server.controller.on_server_ready.add
     def ready(**_):

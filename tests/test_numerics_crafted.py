@@ -1,20 +1,17 @@
-"""Numerics: no estimator lets a NaN or an infinity reach an image, whatever the geometry.
+"""Numerics: no estimator lets a NaN or an infinity reach a crafted hit, whatever the geometry.
 
 Property-based (hypothesis, derandomized, fixed example counts) over every registered
-technique and its ``-short`` variant:
-
-* **Crafted photons** (``PhotonPaths`` built directly) against **crafted camera rays**, all
-  ray x primitive pairs (a superset of what binning hands out): grazing rays (edge-on to a
-  photon plane, ``|n . psi| -> 0``, exactly and within ``1e-9 .. 1e-15``), rays through a
-  photon vertex, rays along a photon segment, zero-length and 1e-300 segments, segments far
-  longer than the box, ``th -> 0`` and ``th -> pi`` between consecutive segments (cones and
-  disks), tiny flights (spheres of radius -> 0), emission grazing an area/mesh light,
-  lights on the box boundary and at its corners, media from ``st = 1e-6`` to ``1e4``,
-  ``|g|`` up to ``1 - 1e-9``. Every per-hit contribution, hit distance and MIS weight (all
-  MIS-capable techniques in one balance-heuristic group) must be finite, and so must the
-  per-ray sums accumulated in float64.
-* **Traced photons** in scenes with extreme parameters: one whole render pass per
-  technique (binning included), every recorded per-hit value and the image finite.
+technique and its ``-short`` variant: **crafted photons** (``PhotonPaths`` built directly)
+against **crafted camera rays**, all ray x primitive pairs (a superset of what binning hands
+out): grazing rays (edge-on to a photon plane, ``|n . psi| -> 0``, exactly and within
+``1e-9 .. 1e-15``), rays through a photon vertex, rays along a photon segment, zero-length
+and 1e-300 segments, segments far longer than the box, ``th -> 0`` and ``th -> pi`` between
+consecutive segments (cones and disks), tiny flights (spheres of radius -> 0), emission
+grazing an area/mesh light, lights on the box boundary and at its corners, media from
+``st = 1e-6`` to ``1e4``, ``|g|`` up to ``1 - 1e-9``. Every per-hit contribution, hit
+distance and MIS weight (all MIS-capable techniques in one balance-heuristic group) must be
+finite, and so must the per-ray sums accumulated in float64. Whole traced passes are in
+``test_numerics_traced.py``.
 
 **Singular hits.** Where the math itself is singular (a photon plane seen edge-on,
 ``n . psi = 0``; a cone or disk at ``th = 0, pi``; a sphere of radius 0), the set of such
@@ -33,129 +30,28 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
+from numerics_support import (  # noqa: F401 - fixed_constant_pool is an autouse fixture
+    CRAFTED,
+    DEPTH,
+    MIS_NAMES,
+    NAMES,
+    build_scene,
+    fixed_constant_pool,
+    media,
+    unit,
+)
 
 from psurf_core.camera import Rays, clip_rays
-from psurf_core.estimators import Estimator
 from psurf_core.geometry import blockers_of, inside_box, ray_box
 from psurf_core.mis import mis_weights
-from psurf_core.render import PassRecord, RenderSettings, render_pass
-from psurf_core.scene import (
-    AreaLight,
-    Camera,
-    Medium,
-    MeshLight,
-    Phase,
-    PointLight,
-    Scene,
-    SphereOccluder,
-)
-from psurf_core.techniques import REGISTRY, get_technique
+from psurf_core.scene import Scene
+from psurf_core.techniques import get_technique
 from psurf_core.techniques.base import PassContext
 from psurf_core.trace import PhotonPaths
 
-NAMES = [n for name, e in REGISTRY.items()
-         for n in ([name, f"{name}-short"] if e.has_short else [name])]
-MIS_NAMES = [n for n in NAMES if REGISTRY[n.removesuffix("-short")].mis_ok]
-
-BOX_MIN, BOX_MAX = -np.ones(3), np.ones(3)
-DEPTH = 3
-
-CRAFTED = settings(derandomize=True, max_examples=20, deadline=None, database=None,
-                   suppress_health_check=list(HealthCheck))
-TRACED = settings(derandomize=True, max_examples=8, deadline=None, database=None,
-                  suppress_health_check=list(HealthCheck))
-
-
-@pytest.fixture(autouse=True)
-def _fixed_constant_pool():
-    """Pin hypothesis's pool of "interesting" constants.
-
-    Hypothesis mixes literals harvested from every *loaded* local module (psurf_core, ui,
-    app, ...) into its draws, so with ``derandomize`` alone the examples still depend on
-    which modules happen to be imported (the test selection, lazily imported techniques).
-    An empty local pool makes the examples a function of this file only.
-    """
-    from hypothesis.internal.conjecture import providers
-
-    get = getattr(providers, "_get_local_constants", None)
-    cache = getattr(providers, "CONSTANTS_CACHE", None)
-    if get is None or cache is None:  # another hypothesis version: nothing to pin
-        yield
-        return
-    empty = providers.Constants()
-    providers._get_local_constants = lambda: empty
-    cache.cache.clear()
-    try:
-        yield
-    finally:
-        providers._get_local_constants = get
-        cache.cache.clear()
-
-
-# ----------------------------------------------------------------------------- scenes
-def _unit(v) -> np.ndarray:
-    v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v)
-
-
-def build_scene(sigma_t: float, albedo: float, g: float, placement: str, camera: str,
-                res=(6, 5), max_scatter: int = DEPTH) -> Scene:
-    """A point, an area and a mesh light (so every technique applies) in the unit box.
-
-    ``placement``: ``inside`` (lights well inside), ``boundary`` (point light on a face, the
-    area light on the top face, the mesh light on a side face) or ``corner`` (point light
-    at a box corner, area and mesh lights touching edges).
-    """
-    if placement == "inside":
-        point = np.array([0.3, 0.4, 0.1])
-        corner, eu, ev = np.array([-0.3, 0.5, -0.3]), np.array([0.6, 0, 0]), np.array([0, 0, 0.6])
-        tri_o = np.array([-0.5, -0.5, 0.2])
-    elif placement == "boundary":
-        point = np.array([0.2, -1.0, 0.3])
-        corner, eu, ev = np.array([-0.3, 1.0, -0.3]), np.array([0.6, 0, 0]), np.array([0, 0, 0.6])
-        tri_o = np.array([-1.0, -0.3, -0.2])
-    else:
-        point = np.array([1.0, 1.0, -1.0])
-        corner, eu, ev = np.array([-1.0, 1.0, -1.0]), np.array([0.5, 0, 0]), np.array([0, 0, 0.5])
-        tri_o = np.array([-1.0, -1.0, -1.0])
-    # area light faces down (cross(eu, ev) = -y); mesh: two triangles of a quad facing +x.
-    a, b = np.array([0.0, 0.6, 0.0]), np.array([0.0, 0.0, 0.6])
-    tris = np.array([[tri_o, tri_o + b, tri_o + a], [tri_o + b, tri_o + a + b, tri_o + a]])
-    lights = (
-        PointLight(point, np.array([4.0, 3.0, 2.0]), _unit([0.0, 1.0, 0.0])),
-        AreaLight(corner, eu, ev, np.array([3.0, 3.0, 1.0])),
-        MeshLight(tris, np.array([2.0, 1.0, 2.0]), "<crafted>"),
-    )
-    positions = {"outside": [0.0, 0.0, -4.0], "inside": [0.1, -0.2, -0.4],
-                 "face": [0.05, 0.1, -1.0]}
-    cam = Camera(np.array(positions[camera]), np.array([0.0, 0.05, 0.0]),
-                 np.array([0.0, 1.0, 0.0]), 60.0, *res)
-    med = Medium(BOX_MIN.copy(), BOX_MAX.copy(), albedo * sigma_t, (1.0 - albedo) * sigma_t,
-                 Phase("hg", g) if g != 0.0 else Phase())
-    occ = (SphereOccluder(np.array([-0.5, 0.0, 0.5]), 0.2),)
-    return Scene(cam, med, lights, occ, 1, max_scatter, "<numerics>")
-
-
 # ----------------------------------------------------------------------------- strategies
-def _media(sigma_t):
-    return st.fixed_dictionaries({
-        "sigma_t": sigma_t,
-        "albedo": st.sampled_from([0.0, 1e-9, 0.5, 1.0]) | st.floats(0.0, 1.0),
-        "g": st.sampled_from([0.0, 1 - 1e-9, -(1 - 1e-9), 0.999, -0.999, 1e-4])
-        | st.floats(-0.99, 0.99),
-        "placement": st.sampled_from(["inside", "boundary", "corner"]),
-        "camera": st.sampled_from(["outside", "inside", "face"]),
-    })
-
-
-#: Media from nearly transparent to very dense, |g| up to 1 - 1e-9.
-media = _media(st.sampled_from([1e-6, 1e-3, 0.05, 1.0, 7.0, 1e2, 1e4]) | st.floats(1e-6, 1e4))
-#: The same extremes, but ordinary densities often enough that traced photons leave valid
-#: multiple-scattering paths in the unit box (with st = 1e4 there are almost none).
-traced_media = _media(st.sampled_from([1e-6, 1e-3, 1e2, 1e4]) | st.floats(0.2, 5.0))
-
 #: Segment lengths: ordinary ones (two chances in three) or zero, denormal-small, tiny,
 #: longer than the box, absurd.
 _ordinary = st.floats(0.05, 1.2)
@@ -178,20 +74,21 @@ photon = st.fixed_dictionaries({
 })
 
 
+
 # ----------------------------------------------------------------------------- crafting
 def _perp(v: np.ndarray, hint: np.ndarray) -> np.ndarray:
     p = np.cross(v, hint)
     if np.linalg.norm(p) < 1e-6:
         p = np.cross(v, [0.3, 0.9, 0.1])
-    return _unit(p)
+    return unit(p)
 
 
 def _direction(turn: str, prev: np.ndarray, x: np.ndarray, cam: np.ndarray, seed, eps: float,
                emit_normal: np.ndarray | None) -> np.ndarray:
     seed = np.asarray(seed, dtype=float)
-    rnd = _unit(seed + [1e-3, 2e-3, 3e-3]) if np.linalg.norm(seed) > 1e-3 else _unit([1, 2, 3])
+    rnd = unit(seed + [1e-3, 2e-3, 3e-3]) if np.linalg.norm(seed) > 1e-3 else unit([1, 2, 3])
     to_cam = cam - x
-    to_cam = _unit(to_cam) if np.linalg.norm(to_cam) > 1e-9 else rnd
+    to_cam = unit(to_cam) if np.linalg.norm(to_cam) > 1e-9 else rnd
     if turn == "random":
         d = rnd
     elif turn == "same":
@@ -199,9 +96,9 @@ def _direction(turn: str, prev: np.ndarray, x: np.ndarray, cam: np.ndarray, seed
     elif turn == "opposite":
         d = -prev
     elif turn == "eps":
-        d = _unit(prev + eps * _perp(prev, rnd))
+        d = unit(prev + eps * _perp(prev, rnd))
     elif turn == "eps-opposite":
-        d = _unit(-prev + eps * _perp(prev, rnd))
+        d = unit(-prev + eps * _perp(prev, rnd))
     elif turn == "to-camera":
         d = to_cam
     elif turn == "from-camera":
@@ -214,8 +111,8 @@ def _direction(turn: str, prev: np.ndarray, x: np.ndarray, cam: np.ndarray, seed
         # One-sided emitters: the photon leaves on the front side (cos >= 0), possibly 0.
         c = float(d @ emit_normal)
         if c < 0.0:
-            d = _unit(d - 2.0 * c * emit_normal)
-    return _unit(d)
+            d = unit(d - 2.0 * c * emit_normal)
+    return unit(d)
 
 
 def craft_paths(scene: Scene, specs: list) -> PhotonPaths:
@@ -289,7 +186,7 @@ def craft_rays(scene: Scene, paths: PhotonPaths, eps: float):
         for j in range(DEPTH + 1):
             v = paths.x[p, j] - cam
             if np.all(np.isfinite(v)) and np.linalg.norm(v) > 1e-9:
-                pin.append(_unit(v))
+                pin.append(unit(v))
         for j in range(DEPTH):
             if not paths.alive[p, j]:
                 continue
@@ -304,18 +201,18 @@ def craft_rays(scene: Scene, paths: PhotonPaths, eps: float):
                     u = a * wj + b * wn
                     if np.linalg.norm(u) < 1e-9:
                         continue
-                    u = _unit(u)
+                    u = unit(u)
                     # Edge-on: the ray lies in the photon plane through x_{j+1}.
                     free_o.append(paths.x[p, j + 1] - 2.0 * u)
                     free_d.append(u)
                     if np.linalg.norm(n) > 0:
-                        d = _unit(u + eps * _unit(n))
+                        d = unit(u + eps * unit(n))
                         free_o.append(paths.x[p, j + 1] - 2.0 * d)
                         free_d.append(d)
     for target in ([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [-1.0, 1.0, -1.0], [0.3, -0.99, 0.2]):
         v = np.asarray(target) - cam
         if np.linalg.norm(v) > 1e-9:
-            pin.append(_unit(v))
+            pin.append(unit(v))
     sets = []
     for o, d, origin in ((np.tile(cam, (len(pin), 1)), np.array(pin), cam.copy()),
                          (np.array(free_o).reshape(-1, 3), np.array(free_d).reshape(-1, 3),
@@ -386,70 +283,3 @@ def test_crafted_degenerate_geometry_stays_finite(name):
 
     run()
     assert sum(hits) > 0, f"{name}: no crafted example produced a hit (vacuous test)"
-
-
-def _render_checked(scene: Scene, est: Estimator, seed: int, photons: int) -> int:
-    rec = PassRecord()
-    img = render_pass(scene, est, 0, seed, RenderSettings(photons=photons), record=rec)
-    assert img.dtype == np.float64 and np.all(np.isfinite(img)), est.spec
-    n = 0
-    for chunks in rec.hits.values():
-        for hits, val in chunks:
-            assert np.all(np.isfinite(val)) and np.all(np.isfinite(hits.s)), est.spec
-            n += len(hits)
-    return n
-
-
-@pytest.mark.parametrize("name", NAMES)
-def test_traced_extreme_scenes_give_finite_images(name):
-    hits = []
-
-    @TRACED
-    @given(medium=traced_media, seed=st.integers(0, 2**31 - 1))
-    def run(medium, seed):
-        est = Estimator(name, groups=((get_technique(name),),))
-        hits.append(_render_checked(build_scene(**medium), est, seed, 200))
-
-    run()
-    assert sum(hits) > 0, f"{name}: no traced example produced a hit (vacuous test)"
-
-
-@pytest.mark.parametrize("weighting", ["balance", "power"])
-def test_traced_mis_of_every_technique_gives_finite_images(weighting):
-    @settings(TRACED, max_examples=4)
-    @given(medium=traced_media, seed=st.integers(0, 2**31 - 1))
-    def run(medium, seed):
-        group = tuple(get_technique(n) for n in MIS_NAMES)
-        est = Estimator(f"mis:{'+'.join(MIS_NAMES)}", groups=(group,), weighting=weighting)
-        _render_checked(build_scene(**medium, res=(4, 3)), est, seed, 100)
-
-    run()
-
-
-@pytest.mark.parametrize("g", [1 - 1e-9, -(1 - 1e-9), 1 - 1e-15, 0.999, -0.5, 1e-4])
-def test_phase_function_is_finite_and_exact_as_g_approaches_one(g):
-    """``1 + g^2 - 2 g mu`` cancelled to 0 at ``mu = +-1`` for ``|g|`` near 1 (an infinite
-    rho, then ``0 * inf = NaN`` in every contribution with ``ss = 0`` or a zero weight)."""
-    from psurf_core.sampling import phase_value
-
-    mu = np.array([1.0, -1.0, 0.0, 1.0 - 1e-12])
-    rho = phase_value(mu, g)
-    assert np.all(np.isfinite(rho)) and np.all(rho > 0)
-    exact = (1 - g) * (1 + g) / (4 * np.pi * np.array([(1 - g) ** 3, (1 + g) ** 3]))
-    np.testing.assert_allclose(rho[:2], exact, rtol=1e-6)
-
-
-def test_traced_extreme_scenes_reference_gives_finite_images():
-    """The path tracer too: dense/thin media, |g| -> 1, lights touching the box."""
-    nonzero = []
-
-    @settings(TRACED, max_examples=6)
-    @given(medium=traced_media, seed=st.integers(0, 2**31 - 1))
-    def run(medium, seed):
-        img = render_pass(build_scene(**medium, res=(6, 4)), Estimator("reference", reference=True),
-                          0, seed, RenderSettings(spp=4))
-        assert img.dtype == np.float64 and np.all(np.isfinite(img)) and np.all(img >= 0)
-        nonzero.append(bool(img.sum() > 0))
-
-    run()
-    assert any(nonzero), "reference: every extreme scene rendered black (vacuous test)"

@@ -1,0 +1,166 @@
+"""What one tick of the window's timer does (:class:`Ticker`, a mixin of
+:class:`ui.views.interactive.App`): take what the background processes sent, play a script
+step, apply a rested parameter change, and draw only what changed, once.
+
+Every 200 ms (``App.TICK_MS``) the timer calls :meth:`Ticker.tick` and nothing else (not
+pyvista's ``add_timer_event``, which rendered the whole window after every callback). A new
+inspection redraws the window once (``App.redraw``); merged passes redraw the image panels and
+the stage text, rendering only their renderers (:meth:`Ticker._frame`); a tick with nothing
+new draws nothing. ``benchmarks/ui_frames.py`` times it.
+
+The mixin uses the app's plotter ``p``, state ``s``, ``controls``, ``script``, ``pending``,
+``clock``, ``apply_params``, ``redraw`` and ``_record_frame``.
+"""
+
+from __future__ import annotations
+
+import time
+
+from psurf_core.render import render_pass
+
+from .compose import CELL_3D, CELL_PANEL, CELL_TITLE, compose_images, compose_panel, software_opengl
+from .script import play_step
+from .window import accept_results
+
+__all__ = ["Ticker"]
+
+
+class Ticker:
+    """The window's timer: :meth:`tick` (and the start-up times it prints when asked)."""
+
+    def _on_timer(self, _obj, _event) -> None:
+        self.tick()
+
+    def _stamp(self) -> None:
+        """With :data:`ui.views.script.TIMES_ENV` set, print when the window first showed
+        itself, a render, every estimator's render and the stage's inspection (seconds since
+        the launch; ``benchmarks/ui_frames.py --first-picture`` reads them)."""
+        if self._launched is None:
+            return
+        s = self.s
+        passes = s.prog.passes if s.prog is not None else [s.acc.n]
+        now = {"window": self._gl_checked or self.p.iren is None,
+               "first-pass": any(passes), "all-passes": all(passes),
+               "inspection": s.inspection is not None}
+        if not now["window"]:
+            return
+        for name, reached in now.items():
+            if reached and name not in self._milestones:
+                self._milestones.add(name)
+                # and the CPU seconds this process has used (a busy machine stretches the
+                # wall seconds, not these)
+                print(f"window: time {name} {time.time() - self._launched:.3f} s "
+                      f"cpu {time.process_time():.2f} s", flush=True)
+
+    # ---------------------------------------------------------------- timer
+    def tick(self, _step=None) -> None:
+        """The timer: a resize, a script step, a rested parameter change, the inspector's
+        answers and the render worker's passes (never waits for any of them)."""
+        if not self._gl_checked:  # the first tick: the window and its GL context exist now
+            self._gl_checked = True
+            if software_opengl(self.p):
+                # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every
+                # full render ~3-5x dearer (benchmarks/ui_frames.py); the window stays
+                # responsive without it. Screenshots keep it: they are figures, not frames.
+                # (The next render goes without it; the picture shown stays as it is.)
+                self.p.ren_win.SetMultiSamples(0)
+            self._stamp()
+        if tuple(self.p.window_size) != self._size:  # resized: lay everything out again
+            self._size = tuple(self.p.window_size)
+            self.redraw()
+        if self.script:
+            play_step(self, self.script.pop(0))
+            self.scripted = True
+        if self.scripted and self.s.message != self._said:  # a script's log of the status line
+            self._said = self.s.message
+            print(f"window: message: {self._said}", flush=True)
+        params = self.pending.due(self.clock())
+        if params is not None:
+            self.apply_params(params)
+            return
+        s = self.s
+        stage_new = accept_results(s)  # a new inspection (or coverage): the stage anew
+        got = 0
+        if s.prog is not None:
+            # Non-blocking: merges what the worker finished (at most POLL_BUDGET seconds).
+            got = s.prog.poll()
+            notes = s.prog.take_notices()
+            if notes:
+                s.message = notes[-1]
+            if got or notes:
+                got = 1
+                s.acc = s.prog.runs[s.inspected].acc
+                if s.prog.errors:
+                    s.message = f"render error: {s.prog.errors[-1].splitlines()[-1]}"
+        elif s.playing:
+            s.acc.add(render_pass(s.scene, s.estimator, s.acc.n, s.seed, s.settings))
+            s.message = f"playing: {s.acc.n} passes"
+            got = 1
+        # At most one composition or one render per tick. A new stage (an inspection arrived)
+        # is composed in this tick, with the passes merged above, and the whole window is
+        # rendered in the next: building its actors and rendering it (3D view included) each
+        # cost as much as a frame, so they are not added up in one tick. New passes redraw
+        # the image panels and the stage text only.
+        if stage_new:
+            self.compose_all()
+            self._render_due = True
+        elif self._render_due:
+            if got and not self._compose_frame():
+                self.compose_all()  # the stage text needs another layout
+            self.redraw_render()
+        elif got:
+            self._frame()
+        elif s.inspector is not None and s.inspector.busy("pixel") is not None:
+            now = time.monotonic()
+            if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
+                self._busy_shown = now
+                self._frame()
+
+    def redraw_render(self) -> None:
+        """Render the whole window as composed (the second half of a new stage's redraw)."""
+        self.p.render()
+        self._render_due = False
+        self._stamp()
+        self._record_frame()
+
+    def _compose_frame(self) -> bool:
+        """Compose the image panels and the stage panel; False when the panel's text needs
+        another layout."""
+        held = self.p.suppress_rendering
+        self.p.suppress_rendering = True
+        try:
+            compose_images(self.p, self.s)
+            return compose_panel(self.p, self.s)
+        finally:
+            self.p.suppress_rendering = held
+
+    def _frame(self) -> None:
+        """Redraw the image panels and the stage panel (the 3D view and its camera stay)."""
+        fits = self._compose_frame()
+        if not fits:  # the panel's text needs another layout: everything is laid out again
+            self.redraw()
+            self._record_frame()
+            return
+        # Only the image panels and the stage text changed: only their renderers are drawn.
+        # The 3D view is the costliest part of a frame (tens to hundreds of ms in software
+        # OpenGL, measured by benchmarks/ui_frames.py), the footer's and the title's text
+        # actors cost too, so they keep last frame's pixels: VTK renders into its own
+        # framebuffer, and a renderer that is not drawn leaves its viewport as it was (the
+        # layout's parts never overlap). Any other render (camera moves, stage changes,
+        # resizes) draws everything again.
+        p = self.p
+        skip = [p.renderers[p.renderers.loc_to_index(CELL_3D)],
+                p.renderers[p.renderers.loc_to_index(CELL_TITLE)]]
+        if not self.s.panel_changed:
+            skip.append(p.renderers[p.renderers.loc_to_index(CELL_PANEL)])
+        if self.controls is not None and not self.s.show_help:
+            skip.append(self.controls.overlay)  # the help box lies over the other parts
+        for ren in skip:
+            ren.SetDraw(False)
+        try:
+            p.render()
+        finally:
+            for ren in skip:
+                ren.SetDraw(True)
+        self._stamp()
+        self._record_frame()
