@@ -263,6 +263,7 @@ def reference(case, scene, scene_path, kmin, kmax, args) -> dict:
                       "seconds": float(d["seconds"]), "file": d["path"],
                       "render_seconds": d["render_seconds"]})
     out = composite_path(args.work, case, args.reference, kmin, kmax, args.ref_time)
+    out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp.npz")
     np.savez_compressed(tmp, mean=mean, var=var_mean, passes=np.int64(1),
                         seconds=np.float64(seconds), min_scatter=np.int64(kmin),

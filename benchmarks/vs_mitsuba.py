@@ -92,12 +92,15 @@ CASES = (
 )
 
 def recommended(min_scatter: int, max_scatter: int) -> str:
-    """psurf's recommended estimator for a window: the paper's presets (README)."""
+    """psurf's recommended estimator for a window: the README's presets tuned for equal time
+    (``fast-single`` for K = 1, ``fast-multi`` for windows from K = 2, ``fast-full``
+    otherwise), which win docs/study.md's equal-time comparisons where the paper's
+    ``paper-*`` presets lose."""
     if max_scatter == 1:
-        return "paper-single"
+        return "fast-single"
     if min_scatter >= 2:
-        return "paper-multi"
-    return "paper-full"
+        return "fast-multi"
+    return "fast-full"
 
 
 def _estimators(flags: list[str], cases) -> dict[str, str]:
