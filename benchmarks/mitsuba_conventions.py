@@ -1,13 +1,13 @@
 """Print the numbers behind ``tests/test_vs_mitsuba.py``'s convention checks.
 
 Usage: ``python benchmarks/mitsuba_conventions.py [--variant V] [--mutations]``. Runs each
-check of the test
-with the test's scenes, sample counts and seeds (its helpers, imported) and prints, per check,
-the largest per-pixel ``|z|``, the aggregate (image-sum) z per channel, Mitsuba's image sum over
-the oracle's and that sum's relative standard error: how closely the converted scene agrees,
-not only that it passes. The test asserts; this only reports. ``--mutations`` instead breaks
-one convention at a time in the converted scene (monkeypatched, no file changes) and reports
-whether the same check rejects it: that the checks can fail.
+check of the test with the test's scenes, sample counts and seeds (its helpers, imported) and
+prints, per check, the largest per-pixel ``|z|`` (on the pixels where the test bounds it), the
+aggregate (image-sum) z per channel, Mitsuba's image sum over the oracle's and that sum's
+relative standard error: how closely the converted scene agrees, not only that it passes. The
+test asserts; this only reports. ``--mutations`` instead breaks one convention at a time in the
+converted scene (monkeypatched, no file changes) and reports whether the same check rejects
+it: that the checks can fail.
 """
 
 from __future__ import annotations
@@ -27,8 +27,11 @@ import test_vs_mitsuba as T  # noqa: E402
 from psurf_core.camera import project  # noqa: E402
 
 
-def _row(label, m, se, ref, ref_se, mask=None):
+def _row(label, m, se, ref, ref_se, mask=None, pixels=None):
+    """One table row; the per-pixel |z| on ``pixels`` (as the test bounds it) if given."""
     z, agg = T._z(m, se, ref, ref_se, mask)
+    if pixels is not None:
+        z, _ = T._z(m, se, ref, ref_se, pixels)
     mask = np.ones(m.shape[:2], bool) if mask is None else mask
     ref_se = np.broadcast_to(ref_se, se.shape)
     ratio = m[mask].sum(axis=0) / ref[mask].sum(axis=0)
@@ -68,7 +71,12 @@ def main(argv=None) -> int:
         ref, ref_se = T._psurf_reference(scene, passes=32, spp=32, seed=seeds[0])
         m, se = T._mitsuba(scene, passes=32, spp=128, seed=seeds[1])
         k = f"{window[0]}..{'inf' if window[1] < 0 else window[1]}"
-        _row(f"area + mesh lights, occluders, K={k} vs psurf reference", m, se, ref, ref_se)
+        inside = T.inside_silhouette(scene)
+        _row(f"area + mesh lights, occluders, K={k} vs psurf reference", m, se, ref, ref_se,
+             pixels=inside)
+        if window == (1, 1):
+            z, _ = T._z(np.fliplr(m), np.fliplr(se), ref, ref_se, inside)
+            print(f"| (the same, image fliplr: rejected) | {z.max():.0f} | | | |")
         if window == (2, 3):
             two, two_se = T._psurf_reference(scene.with_scatter(2, 2), passes=32, spp=32,
                                              seed=23)
@@ -94,7 +102,8 @@ def _emitter_z(window):
                      kmin=window[0], kmax=window[1])
     ref, ref_se = T._psurf_reference(scene, passes=32, spp=32, seed=11)
     m, se = T._mitsuba(scene, passes=32, spp=128, seed=12)
-    return T._z(m, se, ref, ref_se)
+    z, _ = T._z(m, se, ref, ref_se, T.inside_silhouette(scene))
+    return z, T._z(m, se, ref, ref_se)[1]
 
 
 def mutations() -> None:

@@ -3,15 +3,18 @@
 Usage::
 
     python benchmarks/vs_mitsuba.py [--time 30] [--ref-time 300] [--cases a,b,...]
-        [--estimator SPEC | --estimator CASE=SPEC ...] [--photons N] [--jobs 2]
+        [--estimator SPEC | --estimator CASE=SPEC ...] [--photons auto|N] [--jobs 2]
         [--reference composite|mitsuba|psurf] [--mitsuba-spp N] [--variant V] [--seed S]
         [--out out/vs_mitsuba.json] [--md out/vs_mitsuba.md] [--work out/vs_mitsuba]
+        [--ref-clock wall|cpu] [--refs-only]
 
 (``make bench-mitsuba`` installs the ``bench`` extra and runs it.) For each case of
 :data:`CASES` (a bundled scene and a scatter window ``[min_scatter, max_scatter]``):
 
 1. **reference**: long renders, ``--ref-time`` seconds each, seed ``1000`` (no contestant uses
-   it), cached in ``--work/refs``, summed (:func:`reference_parts`). By default
+   it), cached in ``--work/refs``, summed (``mitsuba_renders.reference_parts``; the sum is
+   also written there as an ``app.py compare --reference`` file). ``--refs-only`` renders
+   the references of the chosen cases and stops. By default
    (``--reference composite``) single scattering comes from Mitsuba and two or more events from
    psurf's ``planes``: a path tracer with next-event estimation is excellent at K = 1 but
    converges slowly beyond it (per sample, Mitsuba's relVar at K = 2..3 is 20-30x that at
@@ -21,9 +24,11 @@ Usage::
    contestant's estimator, and Mitsuba's image-sum z against it checks it.
    ``--reference mitsuba`` (or ``psurf``, its ``reference`` path tracer) renders the whole
    window with one path tracer instead.
-2. **psurf**: ``app.py render SCENE --estimator SPEC --time T --jobs J`` with the window's
-   ``--min-scatter/--max-scatter`` (``SPEC`` from :func:`recommended`, or ``--estimator``);
-   kernels compile before its clock starts.
+2. **psurf**: ``app.py render SCENE --estimator SPEC --time T --jobs J --photons N`` with the
+   window's ``--min-scatter/--max-scatter`` (``SPEC`` from :func:`recommended`, or
+   ``--estimator``); kernels compile before its clock starts. ``N`` is ``--photons``, by
+   default ``auto``: chosen by pilot passes outside the clock as ``app.py compare`` chooses
+   it (``mitsuba_renders.psurf_photons``).
 3. **Mitsuba**: :class:`mitsuba_scene.MitsubaRenderer` for the wall time psurf's run took
    (its ``seconds``: at least ``T``, since psurf finishes the pass in flight) on ``J`` Dr.Jit
    threads after a warm-up pass (which compiles the kernels outside the clock),
@@ -66,6 +71,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import mitsuba_renders as mr  # noqa: E402
 import mitsuba_scene as ms  # noqa: E402
 
 from psurf_core.metrics import RELMSE_EPS, relmse, var_relmse  # noqa: E402
@@ -85,17 +91,16 @@ CASES = (
     ("study_occluder_k23", "scenes/study_occluder.toml", 2, 3),
 )
 
-#: Seed of the reference renders (contestants use ``--seed``, default 0).
-REFERENCE_SEED = 1000
-
-
 def recommended(min_scatter: int, max_scatter: int) -> str:
-    """psurf's recommended estimator for a window: the paper's presets (README)."""
+    """psurf's recommended estimator for a window: the README's presets tuned for equal time
+    (``fast-single`` for K = 1, ``fast-multi`` for windows from K = 2, ``fast-full``
+    otherwise), which win docs/study.md's equal-time comparisons where the paper's
+    ``paper-*`` presets lose."""
     if max_scatter == 1:
-        return "paper-single"
+        return "fast-single"
     if min_scatter >= 2:
-        return "paper-multi"
-    return "paper-full"
+        return "fast-multi"
+    return "fast-full"
 
 
 def _estimators(flags: list[str], cases) -> dict[str, str]:
@@ -109,123 +114,6 @@ def _estimators(flags: list[str], cases) -> dict[str, str]:
         else:
             out = dict.fromkeys(out, f)
     return out
-
-
-def psurf_render(scene_path, kmin, kmax, estimator, seconds, seed, jobs, photons, out):
-    """Run ``app.py render`` and load its .npz (dict of mean, var, passes, seconds, ...)."""
-    cmd = [sys.executable, str(ROOT / "app.py"), "render", str(ROOT / scene_path),
-           "--estimator", estimator, "--time", f"{seconds:g}", "--seed", str(seed),
-           "--min-scatter", str(kmin), "--max-scatter", str(kmax), "--out", str(out)]
-    if jobs > 1:
-        cmd += ["--jobs", str(jobs)]
-    if photons is not None and estimator != "reference":
-        cmd += ["--photons", str(photons)]
-    t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
-    wall = time.perf_counter() - t0
-    with np.load(out) as z:
-        d = {k: z[k] for k in ("mean", "var", "passes", "seconds", "photons_per_pass", "spp")}
-    return {"mean": d["mean"].astype(np.float64), "var": d["var"].astype(np.float64),
-            "passes": int(d["passes"]), "seconds": float(d["seconds"]),
-            "photons_per_pass": int(d["photons_per_pass"]), "spp": int(d["spp"]),
-            "process_wall_seconds": wall,
-            "command": " ".join(shlex.quote(str(c)) for c in cmd)}
-
-
-def calibrate_spp(renderer_for, seconds: float, spp0: int = 16, target_passes: int = 40) -> int:
-    """Samples per pixel per Mitsuba pass so that a pass takes about ``seconds / target``."""
-    r = renderer_for(spp0)
-    r.pass_image(seed=ms.pass_seed(0, 0, tag=2))  # compiles
-    t0 = time.perf_counter()
-    r.pass_image(seed=ms.pass_seed(0, 1, tag=2))
-    dt_pass = max(time.perf_counter() - t0, 1e-4)
-    spp = int(spp0 * (seconds / target_passes) / dt_pass)
-    return int(np.clip(1 << max(int(np.log2(max(spp, 1))), 0), 1, 1 << 14))
-
-
-def mitsuba_render(scene, seconds, seed, jobs, spp):
-    """Equal-time Mitsuba render of the scene's window (dict as :func:`psurf_render`)."""
-    def make(s):
-        return ms.MitsubaRenderer(scene, spp=s, threads=jobs)
-
-    if spp is None:
-        spp = calibrate_spp(make, seconds)
-    r = make(spp).render(seconds=seconds, seed=seed)
-    return {"mean": r.mean, "var": r.var, "passes": r.passes, "seconds": r.seconds,
-            "spp": r.spp, "warmup_seconds": r.warmup_seconds, "variant": r.variant}
-
-
-def _load_npz(path: Path) -> dict:
-    with np.load(path) as z:
-        d = {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
-    return d | {"mean": np.asarray(d["mean"], np.float64), "var": np.asarray(d["var"], np.float64)}
-
-
-def reference_parts(kind: str, kmin: int, kmax: int) -> list[tuple[str, int, int]]:
-    """The renders ``(renderer, min_scatter, max_scatter)`` whose sum is a case's reference.
-
-    ``composite`` (the default): single scattering from Mitsuba, two or more events from
-    psurf's ``planes`` (unbiased for K >= 2, and per second far less noisy there than any path
-    tracer with next-event estimation: docs/vs_mitsuba.md); ``mitsuba`` and ``psurf`` (its
-    ``reference`` path tracer): the whole window from one renderer.
-    """
-    if kind != "composite":
-        return [(kind, kmin, kmax)]
-    parts = [("mitsuba", 1, 1)] if kmin == 1 else []
-    if kmax < 0 or kmax >= 2:
-        parts.append(("planes", max(kmin, 2), kmax))
-    return parts
-
-
-def _render_part(renderer, case, scene, scene_path, kmin, kmax, args) -> dict:
-    """One reference part, cached as ``--work/refs/<case>_<renderer>_K<a>-<b>_<s>s.npz`` (an
-    ``app.py render``-style .npz; delete it to render anew)."""
-    refs = Path(args.work) / "refs"
-    refs.mkdir(parents=True, exist_ok=True)
-    path = refs / f"{case}_{renderer}_K{kmin}-{kmax}_{args.ref_time:g}s.npz"
-    if not path.exists():
-        if renderer == "mitsuba":
-            sc = scene.with_scatter(kmin, kmax)
-            spp = args.mitsuba_spp or calibrate_spp(
-                lambda s: ms.MitsubaRenderer(sc, spp=s, threads=args.jobs), args.ref_time)
-            r = ms.MitsubaRenderer(sc, spp=spp, threads=args.jobs).render(
-                seconds=args.ref_time, seed=REFERENCE_SEED)
-            ms.save_npz(path, r, sc, REFERENCE_SEED)
-        else:
-            estimator = "reference" if renderer == "psurf" else renderer
-            psurf_render(scene_path, kmin, kmax, estimator, args.ref_time, REFERENCE_SEED,
-                         args.jobs, None, path)
-    d = _load_npz(path)
-    if (int(d["min_scatter"]), int(d["max_scatter"])) != (kmin, kmax):
-        raise SystemExit(f"{path}: rendered for another scatter window; delete it")
-    return d | {"path": str(path)}
-
-
-def reference(case, scene, scene_path, kmin, kmax, args) -> dict:
-    """The case's reference: the sum of its :func:`reference_parts`, each ``--ref-time``
-    seconds (independent renders, so the variances of their means add).
-
-    Returns
-    -------
-    dict
-        ``mean`` and ``var_mean`` (variance of the mean, per pixel) as (H, W, 3) arrays,
-        ``seconds`` (all parts) and ``parts`` (renderer, window, passes, spp, seconds, file).
-    """
-    mean = var_mean = None
-    parts, seconds = [], 0.0
-    for renderer, a, b in reference_parts(args.reference, kmin, kmax):
-        d = _render_part(renderer, case, scene, scene_path, a, b, args)
-        vm = d["var"] / max(int(d["passes"]), 1)
-        mean = d["mean"] if mean is None else mean + d["mean"]
-        var_mean = vm if var_mean is None else var_mean + vm
-        seconds += float(d["seconds"])
-        parts.append({"renderer": renderer, "min_scatter": a, "max_scatter": b,
-                      "estimator": str(d.get("estimator", renderer)),
-                      "passes": int(d["passes"]), "spp": int(d["spp"]),
-                      "photons_per_pass": (int(d["photons_per_pass"])
-                                           if "photons_per_pass" in d else None),
-                      "seconds": float(d["seconds"]), "file": d["path"]})
-    return {"mean": mean, "var_mean": var_mean, "seconds": seconds, "parts": parts}
 
 
 #: Fewer passes than this give no ``sum_z``: a per-pass variance from a handful of passes of
@@ -263,13 +151,15 @@ def _above(relmse_value: float, floor: float) -> float | None:
 def run_case(case, scene_path, kmin, kmax, estimator, args) -> dict:
     """Reference, psurf and Mitsuba for one case; the row of the table."""
     scene = load_scene(ROOT / scene_path).with_scatter(kmin, kmax)
-    ref = reference(case, scene, scene_path, kmin, kmax, args)
+    ref = mr.reference(case, scene, scene_path, kmin, kmax, args)
     work = Path(args.work)
-    ps = psurf_render(scene_path, kmin, kmax, estimator, args.time, args.seed, args.jobs,
-                      args.photons, work / f"{case}_psurf.npz")
+    photons = (mr.psurf_photons(scene, estimator, args.time) if args.photons == "auto"
+               else int(args.photons))
+    ps = mr.psurf_render(scene_path, kmin, kmax, estimator, args.time, args.seed, args.jobs,
+                         photons, work / f"{case}_psurf.npz")
     # psurf finishes the pass in flight, so its run may exceed --time; Mitsuba gets the
     # seconds psurf measured: the same wall time on both sides.
-    mt = mitsuba_render(scene, ps["seconds"], args.seed, args.jobs, args.mitsuba_spp)
+    mt = mr.mitsuba_render(scene, ps["seconds"], args.seed, args.jobs, args.mitsuba_spp)
     sp, sm = score(ps, ref), score(mt, ref)
     floor = var_relmse(ref["var_mean"], ref["mean"])
     tn = (None if sp["relvar"] is None or sm["relvar"] is None
@@ -279,9 +169,9 @@ def run_case(case, scene_path, kmin, kmax, estimator, args) -> dict:
         "case": case, "scene": scene_path, "min_scatter": kmin, "max_scatter": kmax,
         "estimator": estimator,
         "reference": {"kind": args.reference, "seconds": ref["seconds"],
-                      "parts": ref["parts"], "relmse_floor": floor},
+                      "parts": ref["parts"], "relmse_floor": floor, "file": ref["file"]},
         "psurf": {k: ps[k] for k in (*keep, "photons_per_pass", "process_wall_seconds",
-                                     "command")} | sp,
+                                     "command")} | sp | {"photons_from": str(args.photons)},
         "mitsuba": {k: mt[k] for k in (*keep, "warmup_seconds", "variant")} | sm
         | {"max_depth, subtracted": list(ms.depth_pair(scene))},
         "relmse_ratio": _ratio(sp["relmse"], sm["relmse"]),
@@ -321,11 +211,47 @@ def markdown(rows: list[dict]) -> str:
 
 
 def _commit() -> str:
+    """The checkout's short commit, ``+dirty`` when tracked files differ from it."""
+    def git(*a):
+        return subprocess.run(["git", *a], cwd=ROOT, text=True, capture_output=True,
+                              check=True).stdout.strip()
+
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
-                              capture_output=True, check=True).stdout.strip()
+        dirty = git("status", "--porcelain", "--untracked-files=no")
+        return git("rev-parse", "--short", "HEAD") + ("+dirty" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
+
+
+def _photons(text: str) -> str | int:
+    if text == "auto":
+        return text
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be 'auto' or an integer > 0, got {text!r}")
+    return n
+
+
+def refs_only(cases, args) -> int:
+    """Render (or find cached) every reference part of ``cases``; print each part's passes,
+    its floor and the wall time its render took (``cached`` when it was already there)."""
+    t0 = time.perf_counter()
+    for case, scene_path, kmin, kmax in cases:
+        scene = load_scene(ROOT / scene_path).with_scatter(kmin, kmax)
+        ref = mr.reference(case, scene, scene_path, kmin, kmax, args)
+        for p in ref["parts"]:
+            took = ("cached" if p["render_seconds"] is None
+                    else f"rendered in {p['render_seconds']:.0f} s")
+            print(f"{case}: {p['renderer']} K={p['min_scatter']}..{p['max_scatter']}: "
+                  f"{p['passes']} passes, {took}: {p['file']}", flush=True)
+        print(f"{case}: floor {var_relmse(ref['var_mean'], ref['mean']):.3g}, sum in "
+              f"{ref['file']}", flush=True)
+    print(f"references of {len(cases)} case(s) in {time.perf_counter() - t0:.0f} s "
+          f"(load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)")
+    return 0
 
 
 def main(argv=None) -> int:
@@ -334,11 +260,16 @@ def main(argv=None) -> int:
     ap.add_argument("--time", type=float, default=30.0, help="seconds of wall time per side")
     ap.add_argument("--ref-time", type=float, default=300.0,
                     help="seconds of each reference part (reference_parts)")
+    ap.add_argument("--ref-clock", choices=("wall", "cpu"), default="wall",
+                    help="a reference part's budget: --ref-time of wall time on --jobs cores, "
+                         "or (cpu) --ref-time x --jobs CPU seconds as a pass count, for "
+                         "rendering references on a busy machine (default: wall)")
     ap.add_argument("--cases", default="all", help="comma-separated case names, or 'all'")
     ap.add_argument("--estimator", action="append", default=[],
                     help="SPEC for every case or CASE=SPEC (repeat); default: recommended()")
-    ap.add_argument("--photons", type=int, default=None,
-                    help="psurf photons per pass (default: app.py render's)")
+    ap.add_argument("--photons", type=_photons, default="auto",
+                    help="psurf photons per pass: a count, or 'auto' (the default: the pass "
+                         "model's N*, as app.py compare chooses it)")
     ap.add_argument("--jobs", type=int, default=2, help="psurf --jobs and Dr.Jit threads")
     ap.add_argument("--reference", choices=("composite", "mitsuba", "psurf"),
                     default="composite", help="reference_parts() (default: composite)")
@@ -349,6 +280,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="out/vs_mitsuba.json")
     ap.add_argument("--md", default="out/vs_mitsuba.md")
     ap.add_argument("--work", default="out/vs_mitsuba", help="renders and cached references")
+    ap.add_argument("--refs-only", action="store_true",
+                    help="render (or find cached) the references of the cases, then stop")
     args = ap.parse_args(argv)
     names = [c[0] for c in CASES]
     wanted = names if args.cases == "all" else args.cases.split(",")
@@ -359,7 +292,10 @@ def main(argv=None) -> int:
     estimators = _estimators(args.estimator, cases)
     variant = ms.pick_variant(args.variant)
     Path(args.work).mkdir(parents=True, exist_ok=True)
+    if args.refs_only:
+        return refs_only(cases, args)
     started = dt.datetime.now(dt.UTC)
+    commit = _commit()  # before the run: the code that ran, not what HEAD is at the end
     load0 = os.getloadavg()
     rows = []
     for case, path, kmin, kmax in cases:
@@ -372,7 +308,7 @@ def main(argv=None) -> int:
         "command": " ".join(shlex.quote(a) for a in [sys.executable, *sys.argv]),
         "started_utc": started.isoformat(timespec="seconds"),
         "finished_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-        "commit": _commit(), "variant": variant, "cpu_count": os.cpu_count(),
+        "commit": commit, "variant": variant, "cpu_count": os.cpu_count(),
         "loadavg_start": load0, "loadavg_end": os.getloadavg(),
         "relmse_eps": RELMSE_EPS, "time": args.time, "jobs": args.jobs, "rows": rows,
     }
