@@ -72,12 +72,21 @@ def _build(fam, weight):
         included: every hit is shaded)."""
         n_defer = 0
         n_hits = 0
+        if i1 <= i0:
+            return n, na, n_defer, n_hits
+        # The photon's path row, for the MIS weight: built once per primitive (its spans are
+        # consecutive, one per image row), not once per span.
+        last = s_prim[i0]
+        if mis:
+            base = photon_row(px, pw, pt, lights, photon[last], kk[last], medium.sigma_t,
+                              medium.g)
         for i in range(i0, i1):
             p = s_prim[i]
             G = load(geom, p, Geometry)
-            if mis:
+            if mis and p != last:
                 base = photon_row(px, pw, pt, lights, photon[p], kk[p], medium.sigma_t,
                                   medium.g)
+                last = p
             base_px = s_row[i] * width
             for k in range(cs[base_px + s_c0[i]], cs[base_px + s_c1[i]]):
                 ray = load(rt, k, RayRow)
@@ -96,10 +105,12 @@ def _build(fam, weight):
                         scal = 0.0
                     else:
                         scal = contribution(G, ray.psi, s, ray.s_min, hit, short, medium)
-                    w = 1.0
-                    if mis:
-                        w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), params)
                     defer = st[0] == DEFER or st[1] == DEFER or st[2] == DEFER
+                    w = 1.0
+                    # A blocked hit added to the image adds nothing: its weight is needed
+                    # only where the hit itself is kept (emit, or a deferred shadow test).
+                    if mis and (emit or defer or scal != 0.0):
+                        w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), params)
                     if emit or defer:
                         if n >= lim:  # cannot happen: lim is the candidates x roots bound
                             raise RuntimeError("walker: output capacity exceeded")
