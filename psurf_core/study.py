@@ -384,6 +384,12 @@ def compare(
     for row in results:
         row["ratio_equal_photons"] = _ratio(row["per_photon_variance"],
                                             first["per_photon_variance"])
+        # Run r against the first estimator's run r: one run's spike (photon planes' second
+        # moment diverges where they graze, docs/study.md) moves the mean, not the median.
+        row["run_ratios"] = [_ratio(a["mean_variance"], b["mean_variance"])
+                             for a, b in zip(row["runs"], first["runs"], strict=True)]
+        ok = [r for r in row["run_ratios"] if r is not None]
+        row["ratio_median_run"] = float(np.median(ok)) if ok else None
         row["relmse_from_variance_ratio"] = _ratio(row["relmse_from_variance"],
                                                    first["relmse_from_variance"])
 

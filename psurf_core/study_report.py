@@ -65,16 +65,22 @@ def _x(x) -> str:
     return "n/a" if x is None else f"{x:.3g}x"
 
 
+def _runs(ratios) -> str:
+    """Run r's Var against the first estimator's run r, e.g. ``0.46, 0.14, 0.43``."""
+    return ", ".join("n/a" if x is None else f"{x:.2g}" for x in ratios or []) or "n/a"
+
+
 def format_table(study: dict) -> str:
     """The Markdown table of a study (one row per estimator; more fields in the JSON)."""
     lines = ["| estimator | photons/pass | passes/run | s/pass | mean variance | Var | "
-             "Var, equal photons | relVar | relVar ratio | relMSE | relMSE ratio |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "Var, run by run | Var, equal photons | relVar | relVar ratio | relMSE | "
+             "relMSE ratio |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in study["results"]:
         ph = "-" if r["photons_per_pass"] is None else str(r["photons_per_pass"])
         lines.append(
             f"| `{r['estimator']}` | {ph} | {r['passes']:.4g} | {r['seconds_per_pass']:.3g} | "
-            f"{_g(r['mean_variance'])} | {_x(r['ratio'])} | "
+            f"{_g(r['mean_variance'])} | {_x(r['ratio'])} | {_runs(r.get('run_ratios'))} | "
             f"{_x(r.get('ratio_equal_photons'))} | {_g(r['relmse_from_variance'])} | "
             f"{_x(r.get('relmse_from_variance_ratio'))} | {_g(r['relmse'])} | "
             f"{_x(r['relmse_ratio'])} |")
@@ -122,7 +128,10 @@ def write_compare_md(path: str, study: dict) -> None:
         "(per-pass variance / passes), the variance of the final image. 'Var, equal photons' "
         "compares per-pass variance x photons per pass instead (no time involved). relMSE = "
         f"mean over pixels and channels of (I - R)^2 / (R^2 + {study['relmse_eps']:g} "
-        "mean(R)^2) against the reference R, averaged over runs; relVar is the same mean with "
+        "mean(R)^2) against the reference R, averaged over runs; 'Var, run by run' is run r's "
+        "Var against the first estimator's run r (a spread much wider than the runs' own "
+        "noise means a heavy-tailed estimator: one rare spike moves Var, not the median run); "
+        "relVar is relMSE's mean with "
         "the estimator's variance of the final image in the numerator: the part of relMSE its "
         "noise explains (the rest is bias and the reference's own noise). Definitions: "
         "`psurf_core/study.py`.",

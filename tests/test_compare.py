@@ -106,6 +106,19 @@ def test_ratio_first_is_one_and_better_estimator_below_one(study):
     assert planes["relmse_ratio"] < 1.0
 
 
+def test_run_by_run_ratios_pair_run_r_with_the_first_estimators_run_r(study):
+    s, out = study
+    first, planes = s["results"]
+    assert first["run_ratios"] == [1.0, 1.0]
+    want = [a["mean_variance"] / b["mean_variance"]
+            for a, b in zip(planes["runs"], first["runs"], strict=True)]
+    assert planes["run_ratios"] == pytest.approx(want)
+    assert planes["ratio_median_run"] == pytest.approx(np.median(want))
+    row = next(ln for ln in (out / "compare.md").read_text().splitlines()
+               if ln.startswith("| `planes`"))
+    assert ", ".join(f"{x:.2g}" for x in want) in row
+
+
 def test_outputs_written(study):
     _, out = study
     for name in OUTPUT_FILES:
