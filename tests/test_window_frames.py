@@ -229,3 +229,64 @@ p.close()
                         code], capture_output=True, text=True, timeout=300, cwd=tmp_path,
                        env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert "renders 0 ticks ok True" in r.stdout, (r.stdout, r.stderr[-2000:])
+
+
+def test_pyplot_and_pooch_wait_until_used():
+    """Start-up (issue 13, first picture <= 5 s): the window's imports and its plotter leave
+    ``matplotlib.pyplot`` and ``pooch`` (imported by pyvista's plotting package, unused by the
+    window) unimported; a program that uses pyplot afterwards gets the real module."""
+    code = """if True:
+        import sys
+        from ui.views import interactive, window
+        p = window.make_plotter((320, 240), off_screen=True)
+        kinds = [type(sys.modules[m]).__name__ for m in ("matplotlib.pyplot", "pooch")]
+        import matplotlib.pyplot as plt
+        fig = plt.figure()
+        real = sys.modules["matplotlib.pyplot"]
+        print(kinds, type(fig).__name__, type(real).__name__, hasattr(real, "subplots"))
+    """
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=300, cwd=ROOT, env={**os.environ, "MPLBACKEND": "Agg"})
+    assert r.stdout.split() == ["['_Deferred',", "'_Deferred']", "Figure", "module",
+                                "True"], (r.stdout, r.stderr[-2000:])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="needs Xvfb (xvfb-run)")
+def test_the_first_frame_is_stamped_and_drawn_without_multisampling(tmp_path):
+    """Under a virtual X server (software OpenGL): ``open_window`` creates the GL context
+    before the first render and turns multisampling off for it; the start-up time
+    ``window`` is printed when that first frame has been rendered, not at the first tick."""
+    code = f"""
+import os, sys
+sys.path.insert(0, {str(ROOT)!r})
+from ui.views import script
+os.environ[script.TIMES_ENV] = "0"
+from ui.views.interactive import App
+from ui.views.window import attach_progressive, build_state, make_plotter
+state = build_state({POINT!r}, seed=0, photons=100, render_passes=False,
+                    estimators=["planes"], inspector_workers=0)
+attach_progressive(state, workers=0, breakdown=False)
+state.prog.pause()
+p = make_plotter((640, 480))
+app = App(p, state)
+app._launched = script.launch_time()
+app.bind()
+app.redraw(keep_camera=False)
+print("before", app._shown, flush=True)
+app.open_window()
+print("samples", p.ren_win.GetMultiSamples(), flush=True)
+p.show(interactive_update=True, auto_close=False)
+print("after", app._shown, flush=True)
+app.close()
+p.close()
+"""
+    r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 800x600x24", sys.executable, "-c",
+                        code], capture_output=True, text=True, timeout=300, cwd=tmp_path,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)})
+    lines = [ln for ln in r.stdout.splitlines()
+             if ln.split()[0] in ("before", "samples", "after")
+             or ln.startswith("window: time window ")]
+    assert lines[:2] == ["before False", "samples 0"], (r.stdout, r.stderr[-2000:])
+    assert lines[2].startswith("window: time window "), (r.stdout, r.stderr[-2000:])
+    assert lines[3] == "after True", (r.stdout, r.stderr[-2000:])

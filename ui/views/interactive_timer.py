@@ -39,7 +39,7 @@ class Ticker:
             return
         s = self.s
         passes = s.prog.passes if s.prog is not None else [s.acc.n]
-        now = {"window": self._gl_checked or self.p.iren is None,
+        now = {"window": self._shown or self.p.iren is None,
                "first-pass": any(passes), "all-passes": all(passes),
                "inspection": s.inspection is not None}
         if not now["window"]:
@@ -52,18 +52,46 @@ class Ticker:
                 print(f"window: time {name} {time.time() - self._launched:.3f} s "
                       f"cpu {time.process_time():.2f} s", flush=True)
 
+    # ---------------------------------------------------------------- start-up
+    def open_window(self) -> None:
+        """Create the window's OpenGL context before its first render (``run`` calls it just
+        before ``plotter.show``), so that its first render is already without multisampling
+        in software OpenGL (:meth:`_check_gl`): that render, every shader compiled for the
+        first time, is the dearest of all (in llvmpipe at 1600x900 ~0.5 s of CPU with
+        pyvista's 8 samples, ~0.3 s without)."""
+        if self._gl_checked or self.p.ren_win is None or self.p.off_screen:
+            return
+        self.p.ren_win.Initialize()
+        self._check_gl()
+
+    def _check_gl(self) -> None:
+        self._gl_checked = True
+        if software_opengl(self.p):
+            # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every full
+            # render ~3-5x dearer (benchmarks/ui_frames.py); the window stays responsive
+            # without it. Screenshots keep it: they are figures, not frames. (Changed after
+            # the first render, the next render goes without it; the picture shown stays.)
+            self.p.ren_win.SetMultiSamples(0)
+
+    def _watch_first_frame(self) -> None:
+        """Stamp ``window`` (:meth:`_stamp`) when the window has rendered its first frame."""
+        rw = self.p.ren_win
+
+        def first(_obj, _event):
+            rw.RemoveObserver(self._tags.pop("first-frame"))
+            self._shown = True
+            self._stamp()
+
+        self._tags["first-frame"] = rw.AddObserver("EndEvent", first)
+
     # ---------------------------------------------------------------- timer
     def tick(self, _step=None) -> None:
         """The timer: a resize, a script step, a rested parameter change, the inspector's
         answers and the render worker's passes (never waits for any of them)."""
-        if not self._gl_checked:  # the first tick: the window and its GL context exist now
-            self._gl_checked = True
-            if software_opengl(self.p):
-                # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every
-                # full render ~3-5x dearer (benchmarks/ui_frames.py); the window stays
-                # responsive without it. Screenshots keep it: they are figures, not frames.
-                # (The next render goes without it; the picture shown stays as it is.)
-                self.p.ren_win.SetMultiSamples(0)
+        if not self._gl_checked:  # the window and its GL context exist now
+            self._check_gl()
+        if not self._shown:
+            self._shown = True
             self._stamp()
         if tuple(self.p.window_size) != self._size:  # resized: lay everything out again
             self._size = tuple(self.p.window_size)
