@@ -105,7 +105,7 @@ def test_priority_lowers_every_thread_once_or_after_its_time(tmp_path):
     code = """if True:
         import os, threading, time
         from ui.cli.background import WORKER_NICE
-        from ui.cli.progressive_worker import Priority
+        from ui.cli.background import Priority
         stop = threading.Event()
         threading.Thread(target=stop.wait, daemon=True).start()
         start = os.getpriority(os.PRIO_PROCESS, 0)

@@ -27,15 +27,13 @@ Priority: a worker renders its first pass at the priority it was started with (t
 first picture waits for that pass, and at the background priority a busy machine gives a
 process a few percent of a core: on this 2-core machine at load 16 its cached kernels took
 6-7 s to load instead of ~1 s), then steps back to :data:`ui.cli.background.WORKER_NICE`
-(:class:`Priority`) so that the window's frames come first; at the latest after
+(:class:`~ui.cli.background.Priority`) so that the window's frames come first; at the latest after
 :data:`FIRST_PASS_SECONDS` (a cold cache compiles kernels for minutes).
 """
 
 from __future__ import annotations
 
-import os
 import queue as _queue
-import threading
 import time
 import traceback
 from dataclasses import dataclass
@@ -52,50 +50,12 @@ from psurf_core.estimators import parse_estimator
 from psurf_core.geometry import blockers_of
 from psurf_core.render import RenderSettings, render_pass, warm_up
 
-from .background import WORKER_NICE, lower_priority
+from .background import Priority
 
-__all__ = ["BreakdownMeans", "Engine", "Job", "Priority", "worker_main"]
+__all__ = ["BreakdownMeans", "Engine", "Job", "worker_main"]
 
 #: A worker stays at its starting priority at most this many seconds (see the module doc).
 FIRST_PASS_SECONDS = 15.0
-
-
-class Priority:
-    """Lowers this process's priority by :data:`~ui.cli.background.WORKER_NICE` once:
-    :meth:`lower` (after the first pass), or a timer after ``seconds``.
-
-    On Linux a niceness belongs to a thread (``os.nice`` changes the caller's only), so every
-    thread of the process is lowered, the timer's caller included; elsewhere ``os.nice``
-    lowers the process.
-    """
-
-    def __init__(self, seconds: float = FIRST_PASS_SECONDS):
-        self._lock = threading.Lock()
-        self.lowered = False
-        self._timer = threading.Timer(float(seconds), self.lower)
-        self._timer.daemon = True
-        self._timer.start()
-
-    def lower(self) -> None:
-        with self._lock:
-            if self.lowered:
-                return
-            self.lowered = True
-        self._timer.cancel()
-        try:
-            tasks = os.listdir("/proc/self/task")
-        except OSError:  # not Linux: os.nice lowers the whole process
-            lower_priority()
-            return
-        try:
-            target = os.getpriority(os.PRIO_PROCESS, os.getpid()) + WORKER_NICE
-            for tid in tasks:
-                try:
-                    os.setpriority(os.PRIO_PROCESS, int(tid), min(target, 19))
-                except (OSError, ValueError):  # a thread that has just ended
-                    pass
-        except OSError:  # not allowed: normal priority
-            pass
 
 
 @dataclass(frozen=True)
@@ -229,7 +189,7 @@ class Engine:
 def worker_main(worker_id: int, n_workers: int, control, results) -> None:
     """The worker process: waits for a job, renders it, sends its passes (module docstring)."""
     engine, gen, paused = None, -1, False
-    priority = Priority()  # the first pass at the starting priority (module doc)
+    priority = Priority(FIRST_PASS_SECONDS)  # the first pass at the starting priority
 
     def handle(msg) -> bool:
         """Apply a control message; False to stop."""
