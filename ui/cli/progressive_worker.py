@@ -14,9 +14,11 @@ renders every pass (one worker, or the UI's own engine) adds each pass's two ``(
 3)`` stacks to its :class:`~psurf_core.breakdown.BreakdownAccumulator` (in pass order: equal
 to a serial run) and a worker sends with each pass only what the panels show of it,
 :class:`BreakdownMeans` (the two means in float32), then the exact accumulators once the job
-is done. Adding a pass's stacks to a float64 accumulator took the UI thread ~80 ms per pass
-of ``paper-multi`` on the showcase (0.34 s for the first), and unpacking them 10 ms. With
-several workers each pass's stacks are sent (float64) and the UI merges them in pass order.
+is done. Merging them in the UI thread made its slowest frame 535-676 ms (363-466 ms of CPU)
+while ``paper-multi`` was inspected on the showcase with the breakdown modes on and off; with
+the merge here 89-166 ms (79-84 ms of CPU, none over 100 ms) (``xvfb-run
+benchmarks/ui_frames.py --quick [--frames 300]``, 2 cores at load 5.3-5.9). With several
+workers each pass's stacks are sent (float64) and the UI merges them in pass order.
 
 Compilation is never render time: before an estimator's first pass in a process the engine
 calls :func:`psurf_core.render.warm_up` (numba compiles the kernels, or loads them from its
@@ -24,11 +26,14 @@ cache) and reports those seconds apart, so the equal-time schedule and the panel
 count passes only.
 
 Priority: a worker renders its first pass at the priority it was started with (the window's
-first picture waits for that pass, and at the background priority a busy machine gives a
-process a few percent of a core: on this 2-core machine at load 16 its cached kernels took
-6-7 s to load instead of ~1 s), then steps back to :data:`ui.cli.background.WORKER_NICE`
-(:class:`~ui.cli.background.Priority`) so that the window's frames come first; at the latest after
-:data:`FIRST_PASS_SECONDS` (a cold cache compiles kernels for minutes).
+first picture waits for that pass, and a busy machine gives a process at the background
+priority a few percent of a core), then steps back to :data:`ui.cli.background.WORKER_NICE`
+(:class:`~ui.cli.background.Priority`) so that the window's frames come first; at the latest
+after :data:`FIRST_PASS_SECONDS` (a cold cache compiles kernels for minutes). With the
+inspector doing the same, the showcase's first pass (``planes,paper-multi``) came 3.9-4.1 s
+after the launch instead of 4.3-4.9 s (``xvfb-run benchmarks/ui_frames.py --first-picture
+5 --roots BEFORE,AFTER``, 2 cores at load 7.3-7.7; the launches at load 6.9-7.5: 5.9 s and
+6.4 s).
 """
 
 from __future__ import annotations
