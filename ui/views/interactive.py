@@ -122,6 +122,7 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
         self.recorder = None
         self._gl_checked = False  # software OpenGL looked for (multisampling off)
         self._shown = False  # the window has rendered its first frame
+        self._recon_warm = None  # the thread loading Reconstruct's kernel (Ticker)
         self._size = tuple(plotter.window_size)
         self._busy_shown = 0.0
         self._t0 = time.perf_counter()

@@ -14,8 +14,10 @@ The mixin uses the app's plotter ``p``, state ``s``, ``controls``, ``script``, `
 
 from __future__ import annotations
 
+import threading
 import time
 
+from psurf_core.inspect import reconstruct_hit
 from psurf_core.render import render_pass
 
 from .compose import CELL_3D, CELL_PANEL, CELL_TITLE, compose_images, compose_panel, software_opengl
@@ -59,9 +61,13 @@ class Ticker:
         in software OpenGL (:meth:`_check_gl`): that render, every shader compiled for the
         first time, is the dearest of all (in llvmpipe at 1600x900 ~0.5 s of CPU with
         pyvista's 8 samples, ~0.3 s without)."""
-        if self._gl_checked or self.p.ren_win is None or self.p.off_screen:
+        rw = self.p.ren_win
+        # X windows only (Linux, Xvfb: what was tried): an EGL window made early and then
+        # shown crashed (VTK 9.7, segmentation fault); elsewhere the first tick does it.
+        if self._gl_checked or rw is None or self.p.off_screen or \
+                type(rw).__name__ != "vtkXOpenGLRenderWindow":
             return
-        self.p.ren_win.Initialize()
+        rw.Initialize()
         self._check_gl()
 
     def _check_gl(self) -> None:
@@ -143,6 +149,30 @@ class Ticker:
             if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
                 self._busy_shown = now
                 self._frame()
+        if not self._render_due:  # after a new stage's composition and its render
+            self._warm_reconstruct()
+
+    def _warm_reconstruct(self) -> None:
+        """Load the Reconstruct stage's compiled kernel (``psurf_core.path_record``'s gather:
+        numba's cache and the modules it imports, ~0.7 s of CPU the first time in a process,
+        which froze the window the first time that stage was shown) in a thread, once, at
+        the end of the first tick after the first inspection was drawn. VTK lets the GIL go
+        while it renders and while the event loop waits, so the loading runs mostly between
+        ticks; a Reconstruct stage asked for meanwhile waits for it (numba's lock) instead of
+        loading it again."""
+        ins = self.s.inspection
+        if self._recon_warm is not None or ins is None or len(ins.table) == 0:
+            return
+
+        def warm():
+            try:
+                reconstruct_hit(ins, 0)
+            except Exception:  # the stage itself reports what goes wrong
+                pass
+
+        self._recon_warm = threading.Thread(target=warm, name="psurf-warm-reconstruct",
+                                            daemon=True)
+        self._recon_warm.start()
 
     def redraw_render(self) -> None:
         """Render the whole window as composed (the second half of a new stage's redraw)."""
