@@ -89,6 +89,8 @@ def test_one_worker_merges_the_breakdowns_and_sends_their_means(scene):
             assert got.n == want.n
             assert np.array_equal(got.mean, want.mean.astype(np.float32))
         assert b.technique_images().shape == ref.technique_images().shape
+        with pytest.raises(TypeError, match="read-only"):  # the worker merges, not the UI
+            b.add_arrays(ref.unweighted.mean, ref.weighted.mean)
         ours = os.getpriority(os.PRIO_PROCESS, 0)
         assert os.getpriority(os.PRIO_PROCESS, prog.pids[0]) == min(ours + WORKER_NICE, 19)
 

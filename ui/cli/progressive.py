@@ -79,7 +79,7 @@ from psurf_core.render import RenderSettings
 
 from .background import Workers, describe_exit
 from .equal_time import compare_rows
-from .progressive_worker import BreakdownMeans, Engine, Job, worker_main
+from .progressive_worker import BreakdownMeans, Engine, Job, ShownBreakdown, worker_main
 
 __all__ = ["EstimatorRun", "Job", "Progressive", "ShownBreakdown", "compare_rows"]
 
@@ -93,27 +93,6 @@ POLL_BUDGET = 0.03
 COMPILE_NOTE_AFTER, COMPILE_CPU = 1.5, 4.0
 #: Give up restarting after this many worker deaths within :data:`RESTART_WINDOW` seconds.
 MAX_RESTARTS, RESTART_WINDOW = 3, 120.0
-
-
-class ShownBreakdown(BreakdownAccumulator):
-    """A worker's breakdown as the panels show it: the means it sent
-    (:class:`~ui.cli.progressive_worker.BreakdownMeans`), read like the accumulator they come
-    from (``weighted.mean``, ``technique_images()``, ...; no variance, nothing is added
-    here). Before the first pass: ``n`` 0 and zero means."""
-
-    def __init__(self, layout: BreakdownLayout, means: BreakdownMeans | None = None):
-        self.layout = layout
-        if means is None:  # zeros are allocated lazily by the OS: nothing is touched
-            zeros = np.zeros(layout.stack_shape, dtype=np.float32)
-            means = BreakdownMeans(0, zeros, zeros)
-        self.weighted = _Means(means.n, means.weighted)
-        self.unweighted = _Means(means.n, means.unweighted)
-
-
-@dataclass
-class _Means:
-    n: int
-    mean: np.ndarray
 
 
 @dataclass

@@ -57,7 +57,7 @@ from psurf_core.render import RenderSettings, render_pass, warm_up
 
 from .background import Priority
 
-__all__ = ["BreakdownMeans", "Engine", "Job", "worker_main"]
+__all__ = ["BreakdownMeans", "Engine", "Job", "ShownBreakdown", "worker_main"]
 
 #: A worker stays at its starting priority at most this many seconds (see the module doc).
 FIRST_PASS_SECONDS = 15.0
@@ -116,6 +116,30 @@ class BreakdownMeans:
     def of(cls, acc: BreakdownAccumulator) -> BreakdownMeans:
         return cls(acc.n, acc.weighted.mean.astype(np.float32),
                    acc.unweighted.mean.astype(np.float32))
+
+
+class ShownBreakdown(BreakdownAccumulator):
+    """A worker's breakdown as the panels show it: the means it sent
+    (:class:`BreakdownMeans`), read like the accumulator they come
+    from (``weighted.mean``, ``technique_images()``, ...; no variance, nothing is added
+    here). Before the first pass: ``n`` 0 and zero means."""
+
+    def __init__(self, layout: BreakdownLayout, means: BreakdownMeans | None = None):
+        self.layout = layout
+        if means is None:  # zeros are allocated lazily by the OS: nothing is touched
+            zeros = np.zeros(layout.stack_shape, dtype=np.float32)
+            means = BreakdownMeans(0, zeros, zeros)
+        self.weighted = _Means(means.n, means.weighted)
+        self.unweighted = _Means(means.n, means.unweighted)
+
+    def add(self, b) -> None:
+        raise TypeError("a shown breakdown is read-only: the worker merges the passes")
+
+
+@dataclass
+class _Means:
+    n: int
+    mean: np.ndarray
 
 
 class Engine:
