@@ -15,6 +15,7 @@ import pytest
 from psurf_core.inspect import inspect_pixel, primitive_pixels
 from psurf_core.render import RenderSettings
 from psurf_core.scene_io import load_scene
+from ui.cli.background import WORKER_NICE
 from ui.cli.inspector import CoverageRequest, Inspector, PixelRequest
 
 SETTINGS = RenderSettings(photons=150)
@@ -56,6 +57,9 @@ def test_background_answers_equal_the_inspection_here(scene):
         mask = primitive_pixels(scene, SPEC, 2, 1, *args, SETTINGS, batch=int(t.batch[k]))
         assert cov.kind == "coverage" and np.array_equal(cov.value, mask) and mask[24, 32]
         assert with_proc.busy("pixel") is None and with_proc.busy("coverage") is None
+        # its first answer at the starting priority, then the background's (issue 13)
+        want_nice = min(os.getpriority(os.PRIO_PROCESS, 0) + WORKER_NICE, 19)
+        assert os.getpriority(os.PRIO_PROCESS, with_proc.pids[0]) == want_nice
     finally:
         with_proc.close()
 

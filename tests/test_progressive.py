@@ -4,6 +4,8 @@ kernels is not render time; a killed worker is restarted and nothing merged is l
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -19,6 +21,7 @@ from ui.cli.progressive import Job, Progressive, compare_rows
 from ui.cli.progressive_worker import Engine
 
 SETTINGS = RenderSettings(photons=150)
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -55,6 +58,78 @@ def test_worker_process_equals_serial_render(scene):
         b = prog.runs[1].breakdown
         ref = _serial_breakdown(scene, "mis:plane-t1t2+sphere", 3, 5)
         assert _same(b.weighted, ref.weighted) and _same(b.unweighted, ref.unweighted)
+
+
+def test_one_worker_merges_the_breakdowns_and_sends_their_means(scene):
+    """Issue 13 (never freeze): with one worker the breakdowns are merged where the passes are
+    rendered; the UI gets their float32 means with every pass, equal to a serial render's
+    (``ShownBreakdown``), and the worker has stepped back to the background priority once
+    its first pass arrived."""
+    import time
+
+    from ui.cli.background import WORKER_NICE
+    from ui.cli.progressive import ShownBreakdown
+
+    spec = "mis:plane-t1t2+sphere"
+    with Progressive(scene, ["planes", spec], SETTINGS, seed=6, workers=1,
+                     breakdown=True) as prog:
+        assert isinstance(prog.runs[1].breakdown, ShownBreakdown)
+        assert prog.runs[1].breakdown.n == 0 and not prog.runs[1].breakdown.image.any()
+        t0 = time.perf_counter()
+        while prog.passes[1] < 2 and time.perf_counter() - t0 < 120:
+            prog.poll()
+            time.sleep(0.02)
+        prog.pause()
+        run = prog.runs[1]
+        b = run.breakdown
+        assert isinstance(b, ShownBreakdown) and not prog.done
+        assert b.n == run.acc.n >= 2 and b.weighted.mean.dtype == np.float32
+        ref = _serial_breakdown(scene, spec, b.n, 6)
+        for got, want in ((b.weighted, ref.weighted), (b.unweighted, ref.unweighted)):
+            assert got.n == want.n
+            assert np.array_equal(got.mean, want.mean.astype(np.float32))
+        assert b.technique_images().shape == ref.technique_images().shape
+        with pytest.raises(TypeError, match="read-only"):  # the worker merges, not the UI
+            b.add_arrays(ref.unweighted.mean, ref.weighted.mean)
+        ours = os.getpriority(os.PRIO_PROCESS, 0)
+        assert os.getpriority(os.PRIO_PROCESS, prog.pids[0]) == min(ours + WORKER_NICE, 19)
+
+
+def test_priority_lowers_every_thread_once_or_after_its_time(tmp_path):
+    """``Priority`` (the worker renders its first pass at the starting priority): ``lower``
+    lowers every thread of the process by WORKER_NICE, once; the timer does it by itself.
+    In a child process: a niceness cannot be raised back."""
+    import subprocess
+    import sys
+
+    if not os.path.isdir("/proc/self/task"):
+        pytest.skip("per-thread niceness: Linux")
+    code = """if True:
+        import os, threading, time
+        from ui.cli.background import WORKER_NICE
+        from ui.cli.background import Priority
+        stop = threading.Event()
+        threading.Thread(target=stop.wait, daemon=True).start()
+        start = os.getpriority(os.PRIO_PROCESS, 0)
+        want = min(start + WORKER_NICE, 19)
+        p = Priority(seconds=600)
+        assert not p.lowered and os.getpriority(os.PRIO_PROCESS, 0) == start
+        p.lower()
+        p.lower()
+        tids = [int(t) for t in os.listdir("/proc/self/task")]
+        assert len(tids) >= 2, tids
+        got = {os.getpriority(os.PRIO_PROCESS, t) for t in tids}
+        assert got == {want}, (start, got)
+        q = Priority(seconds=0.05)  # the timer: lowered by then (19 at most)
+        t0 = time.monotonic()
+        while not q.lowered and time.monotonic() - t0 < 60:
+            time.sleep(0.01)
+        assert q.lowered
+        print("ok", start, want)
+    """
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.startswith("ok"), out.stderr
 
 
 def test_two_workers_merge_in_pass_order(scene):

@@ -229,3 +229,89 @@ p.close()
                         code], capture_output=True, text=True, timeout=300, cwd=tmp_path,
                        env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert "renders 0 ticks ok True" in r.stdout, (r.stdout, r.stderr[-2000:])
+
+
+def test_reconstructs_kernel_is_loaded_in_a_thread_after_a_stage_is_drawn(app, monkeypatch):
+    """The first Reconstruct stage froze the window ~0.6 s (numba loading the path gather in
+    the UI thread): the window loads it in a thread once a stage has been composed and
+    rendered, never in the ticks that do those."""
+    from psurf_core import path_record
+    from ui.views import interactive_timer
+
+    if app._recon_warm is not None:  # the fixture's ticks started one
+        app._recon_warm.join(timeout=300)
+    app._recon_warm = None
+    monkeypatch.setattr(interactive_timer, "accept_results", lambda s: True)
+    app.tick()  # a new stage: composed here, rendered in the next tick
+    assert app._render_due and app._recon_warm is None
+    monkeypatch.setattr(interactive_timer, "accept_results", lambda s: False)
+    app.tick()  # rendered; then the kernel is loaded, in a thread
+    warm = app._recon_warm
+    assert not app._render_due and warm is not None and warm.daemon
+    warm.join(timeout=300)
+    assert not warm.is_alive() and path_record._gather.signatures
+    app.tick()
+    assert app._recon_warm is warm  # once
+
+
+def test_pyplot_and_pooch_wait_until_used():
+    """Start-up (issue 13, first picture <= 5 s): the window's imports and its plotter leave
+    ``matplotlib.pyplot`` and ``pooch`` (imported by pyvista's plotting package, unused by the
+    window) unimported; a program that uses pyplot afterwards gets the real module."""
+    code = """if True:
+        import sys
+        from ui.views import interactive, window
+        p = window.make_plotter((320, 240), off_screen=True)
+        kinds = [type(sys.modules[m]).__name__ for m in ("matplotlib.pyplot", "pooch")]
+        import matplotlib.pyplot as plt
+        fig = plt.figure()
+        real = sys.modules["matplotlib.pyplot"]
+        print(kinds, type(fig).__name__, type(real).__name__, hasattr(real, "subplots"))
+    """
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=300, cwd=ROOT, env={**os.environ, "MPLBACKEND": "Agg"})
+    assert r.stdout.split() == ["['_Deferred',", "'_Deferred']", "Figure", "module",
+                                "True"], (r.stdout, r.stderr[-2000:])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="needs Xvfb (xvfb-run)")
+def test_the_first_frame_is_stamped_and_drawn_without_multisampling(tmp_path):
+    """Under a virtual X server (software OpenGL): ``open_window`` creates the GL context
+    before the first render and turns multisampling off for it; the start-up time
+    ``window`` is printed when that first frame has been rendered, not at the first tick."""
+    code = f"""
+import os, sys
+sys.path.insert(0, {str(ROOT)!r})
+from ui.views import script
+os.environ[script.TIMES_ENV] = "0"
+from ui.views.interactive import App
+from ui.views.window import attach_progressive, build_state, make_plotter
+state = build_state({POINT!r}, seed=0, photons=100, render_passes=False,
+                    estimators=["planes"], inspector_workers=0)
+attach_progressive(state, workers=0, breakdown=False)
+state.prog.pause()
+p = make_plotter((640, 480))
+app = App(p, state)
+app._launched = script.launch_time()
+app.bind()
+app.redraw(keep_camera=False)
+print("before", app._shown, flush=True)
+app.open_window()
+print("samples", p.ren_win.GetMultiSamples(), flush=True)
+p.show(interactive_update=True, auto_close=False)
+print("after", app._shown, flush=True)
+app.close()
+p.close()
+"""
+    env = {k: v for k, v in os.environ.items() if k != "VTK_DEFAULT_OPENGL_WINDOW"}
+    r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 800x600x24", sys.executable, "-c",
+                        code], capture_output=True, text=True, timeout=300, cwd=tmp_path,
+                       env={**env, "PYTHONPATH": str(ROOT)})  # an X window (ui.views._vtk)
+    lines = [ln for ln in r.stdout.splitlines()
+             if ln.split()[0] in ("before", "samples", "after")
+             or ln.startswith("window: time window ")]
+    assert len(lines) == 4 and lines[:2] == ["before False", "samples 0"], \
+        (r.stdout, r.stderr[-2000:])
+    assert lines[2].startswith("window: time window "), (r.stdout, r.stderr[-2000:])
+    assert lines[3] == "after True", (r.stdout, r.stderr[-2000:])

@@ -21,7 +21,8 @@ never waits. :class:`Workers` is the machinery they share:
   told, so no merged work is lost); :meth:`Workers.close` stops and joins them, idempotently.
 
 A worker target is a module-level function ``target(worker_id, n_workers, inbox, outbox,
-*args)`` (importable by the spawned interpreter); it should call :func:`lower_priority`.
+*args)`` (importable by the spawned interpreter); it should call :func:`lower_priority`, or
+make a :class:`Priority` and lower it after its first result (what the window waits for).
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ import signal
 import threading
 import time
 
-__all__ = ["WORKER_NICE", "Inbox", "Outbox", "Workers", "describe_exit", "lower_priority"]
+__all__ = ["WORKER_NICE", "Inbox", "Outbox", "Priority", "Workers", "describe_exit",
+           "lower_priority"]
 
 #: Niceness added to worker processes: on a busy machine the UI's frames (software OpenGL
 #: wants every core) come before background work.
@@ -47,6 +49,47 @@ def lower_priority() -> None:
         os.nice(WORKER_NICE)
     except (AttributeError, OSError):  # not POSIX, or not allowed: normal priority
         pass
+
+
+class Priority:
+    """Lowers this process's priority by :data:`WORKER_NICE` once: :meth:`lower` (a worker
+    calls it after its first result: the window's first picture waits for that one), or a
+    timer after ``seconds``, whichever comes first.
+
+    On Linux a niceness belongs to a thread (``os.nice`` changes the caller's only, and threads
+    started before keep theirs), so every thread of the process is lowered, the timer's
+    included; elsewhere ``os.nice`` lowers the process.
+    """
+
+    def __init__(self, seconds: float):
+        self._lock = threading.Lock()
+        self.lowered = False
+        self._timer = threading.Timer(float(seconds), self.lower)
+        self._timer.daemon = True
+        self._timer.start()
+
+    def lower(self) -> None:
+        import os
+
+        with self._lock:
+            if self.lowered:
+                return
+            self.lowered = True
+        self._timer.cancel()
+        try:
+            tasks = os.listdir("/proc/self/task")
+        except OSError:  # not Linux: os.nice lowers the whole process
+            lower_priority()
+            return
+        try:
+            target = min(os.getpriority(os.PRIO_PROCESS, os.getpid()) + WORKER_NICE, 19)
+            for tid in tasks:
+                try:
+                    os.setpriority(os.PRIO_PROCESS, int(tid), target)
+                except (OSError, ValueError):  # a thread that has just ended
+                    pass
+        except (AttributeError, OSError):  # no getpriority, or not allowed: as it is
+            pass
 
 
 def describe_exit(exitcode: int | None) -> str:

@@ -35,12 +35,14 @@ from dataclasses import dataclass
 
 from psurf_core.render import RenderSettings
 
-from .background import Workers, describe_exit, lower_priority
+from .background import Priority, Workers, describe_exit
 
 __all__ = ["CoverageRequest", "Inspector", "PixelRequest", "Result", "compute"]
 
 #: A request waiting longer than this is probably compiling kernels (first run).
 SLOW_AFTER = 3.0
+#: The worker stays at its starting priority at most this many seconds (its first answer).
+FIRST_ANSWER_SECONDS = 15.0
 
 
 @dataclass(frozen=True)
@@ -109,8 +111,10 @@ def _answer(kind: str, ticket: int, request) -> Result:
 
 
 def worker_main(worker_id: int, n_workers: int, control, results) -> None:
-    """The inspector process: answers the newest request of each kind, in arrival order."""
-    lower_priority()
+    """The inspector process: answers the newest request of each kind, in arrival order.
+    Its first answer (the stage the window opens on) at the priority it was started with,
+    the rest at the background's (:class:`~ui.cli.background.Priority`)."""
+    priority = Priority(FIRST_ANSWER_SECONDS)
     waiting: dict = {}  # kind -> (ticket, request), newest only
     while True:
         try:
@@ -128,7 +132,9 @@ def worker_main(worker_id: int, n_workers: int, control, results) -> None:
             continue
         kind = next(iter(waiting))
         ticket, request = waiting.pop(kind)
-        results.put(_answer(kind, ticket, request))
+        answer = _answer(kind, ticket, request)
+        priority.lower()
+        results.put(answer)
 
 
 class Inspector:

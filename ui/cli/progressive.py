@@ -23,7 +23,9 @@ Usage (the window)::
     # the breakdown modes need breakdowns: prog.set_breakdown(mode != "render") (keeps passes)
     # sliders, estimator toggles, 'r': prog.reset(scene=..., estimators=[...],
     #     settings=..., seed=...)   (drops the passes; stale worker results are ignored)
-    # prog.runs[i].acc (Welford), .seconds, .breakdown (BreakdownAccumulator or None),
+    # prog.runs[i].acc (Welford), .seconds, .breakdown (its means, ShownBreakdown, while a
+    #     worker renders; the exact BreakdownAccumulator when the job is done, or for
+    #     workers=0 or N > 1; None without breakdowns),
     #     .note(now) ("compiling kernels (first run)...", "" once passes arrive)
     # prog.summary(reference) -> rows with "ratio" (Var at equal time) and "relmse"
     # window closed: prog.close()
@@ -77,9 +79,9 @@ from psurf_core.render import RenderSettings
 
 from .background import Workers, describe_exit
 from .equal_time import compare_rows
-from .progressive_worker import Engine, Job, worker_main
+from .progressive_worker import BreakdownMeans, Engine, Job, ShownBreakdown, worker_main
 
-__all__ = ["EstimatorRun", "Job", "Progressive", "compare_rows"]
+__all__ = ["EstimatorRun", "Job", "Progressive", "ShownBreakdown", "compare_rows"]
 
 #: Results waiting in the queue per worker before it pauses (back-pressure).
 QUEUE_SIZE = 6
@@ -106,7 +108,10 @@ class EstimatorRun:
     seconds : float
         Wall seconds the worker(s) spent on the merged passes (compilation excluded).
     breakdown : BreakdownAccumulator or None
-        When breakdowns were asked for and the estimator has techniques.
+        When breakdowns were asked for and the estimator has techniques: while one worker
+        renders, the means it sends (:class:`ShownBreakdown`; a restarted worker counts its
+        passes anew), the exact accumulator once the job is done (``max_passes``,
+        ``max_seconds``) and always with ``workers=0`` or several workers.
     compile_seconds : float
         Seconds spent compiling (or loading) its kernels, not counted in :attr:`seconds`.
     warming_since : float or None
@@ -198,19 +203,33 @@ class Progressive:
         cam = job.scene.camera
         self.runs = []
         for spec, est in zip(job.specs, ests, strict=True):
-            b = None
-            if job.breakdown and not est.reference:
-                b = BreakdownAccumulator(BreakdownLayout.of(job.scene, est, job.k_max))
             self.runs.append(EstimatorRun(spec, est, Welford.empty((cam.height, cam.width, 3)),
-                                          breakdown=b))
+                                          breakdown=self._new_breakdown(est)))
         self._idle = set()
         self.stopped = False
         if self.workers == 0:
             self._engine = Engine(job)
+            self._use_engine_breakdowns()
             return
         if self._pool is None:
             self._pool = Workers(worker_main, self.workers, "psurf-progressive", QUEUE_SIZE)
         self._send_job(job)
+
+    def _new_breakdown(self, est):
+        """The UI's side of an estimator's breakdown for the current job (None without one):
+        one worker merges it and sends its means (:class:`ShownBreakdown`); several send
+        every pass's stacks, merged here; ``workers=0``: the engine's own (set after)."""
+        j = self.job
+        if not j.breakdown or est.reference:
+            return None
+        layout = BreakdownLayout.of(j.scene, est, j.k_max)
+        return ShownBreakdown(layout) if self.workers <= 1 else BreakdownAccumulator(layout)
+
+    def _use_engine_breakdowns(self) -> None:
+        """``workers=0``: the runs' breakdowns are the engine's accumulators themselves."""
+        for run, acc in zip(self.runs, self._engine.breakdowns, strict=True):
+            if acc is not None:
+                run.breakdown = acc
 
     def _send_job(self, job: Job) -> None:
         self._gen += 1
@@ -255,14 +274,13 @@ class Progressive:
         for run in self.runs:
             run.pending.clear()  # out of order, from the replaced job: rendered again
             run.warming_since = None
-            run.breakdown = (BreakdownAccumulator(BreakdownLayout.of(job.scene, run.estimator,
-                                                                     job.k_max))
-                             if on and not run.estimator.reference else None)
+            run.breakdown = self._new_breakdown(run.estimator)
         self._idle = set()
         if self.workers == 0:
             warmed = self._engine.warmed
             self._engine = Engine(job)
             self._engine.warmed = warmed  # compiled in this process already
+            self._use_engine_breakdowns()
             return
         self._send_job(job)
 
@@ -308,12 +326,15 @@ class Progressive:
 
     @property
     def done(self) -> bool:
-        """Every estimator reached ``max_passes`` / ``max_seconds`` (never without limits)."""
+        """Every estimator reached ``max_passes`` / ``max_seconds`` (never without limits),
+        and with one worker its exact breakdowns arrived."""
         j = self.job
         if j.max_passes is None and j.max_seconds is None:
             return False
         if self.workers == 0:
             return self._engine.choose() is None
+        if any(isinstance(r.breakdown, ShownBreakdown) for r in self.runs):
+            return False  # the worker's exact accumulators follow its last pass (module doc)
         if j.max_passes is not None and all(r.acc.n >= j.max_passes for r in self.runs):
             return True
         return len(self._idle) == self.workers and not any(r.pending for r in self.runs)
@@ -331,7 +352,13 @@ class Progressive:
             img, dt, stacks = run.pending.pop(run.acc.n)
             run.acc.add(img)
             run.seconds += dt
-            if stacks is not None and run.breakdown is not None:
+            if stacks is None or run.breakdown is None:
+                continue
+            if isinstance(stacks, BreakdownMeans):  # one worker merged it (module doc)
+                run.breakdown = ShownBreakdown(run.breakdown.layout, stacks)
+            elif isinstance(stacks, BreakdownAccumulator):  # workers=0: the engine's own
+                run.breakdown = stacks
+            else:  # several workers: this pass's (unweighted, weighted) stacks
                 run.breakdown.add_arrays(*stacks)
 
     def _warmed(self, e: int, seconds: float, cpu: float) -> None:
@@ -389,6 +416,10 @@ class Progressive:
                 self.runs[msg[2]].warming_since = time.monotonic()
             elif kind == "warmed":
                 self._warmed(msg[2], msg[3], msg[4])
+            elif kind == "breakdowns":  # the job is done: the exact accumulators
+                for run, acc in zip(self.runs, msg[2], strict=True):
+                    if acc is not None and run.breakdown is not None:
+                        run.breakdown = acc
             elif kind == "idle":
                 self._idle.add(msg[2])
             elif kind == "error":

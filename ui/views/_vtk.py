@@ -10,12 +10,56 @@ is imported: without a display, VTK 9.4+ tries X first, prints "bad X server con
 then falls back to EGL/OSMesa; choosing EGL up front (unless the user chose) keeps stderr to
 one clear line. The OpenGL rendering module is loaded so that ``vtkRenderWindow()`` is an
 OpenGL window (pyvista loads it with its first plotter anyway).
+
+pyvista's plotting package imports ``matplotlib.pyplot`` and ``pooch`` (a downloader) when it
+loads, for a chart type and remote files that psurf never uses: ~0.2 s of the ~1.45 s of
+CPU that importing the window and making its plotter took (1.22-1.32 s with the stand-ins,
+1.40-1.52 s without, 3 runs each at load 5-6). Here they are stand-ins (:class:`_Deferred`) that
+import the real module the first time one of its attributes is read, so a program that
+uses them (a figure of the breakdowns, a tutorial's plot) gets them unchanged.
 """
 
+import importlib
+import importlib.util
 import os
+import sys
+import types
 
 if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+class _Deferred(types.ModuleType):
+    """A module imported the first time one of its attributes is read (then it forwards:
+    whoever bound the stand-in reads the real module's attributes through it). Dunder names
+    (``__file__``, ``__warningregistry__``: what tools scanning ``sys.modules`` look for)
+    are not attributes of the stand-in and import nothing."""
+
+    def __getattr__(self, attr):
+        if attr.startswith("__") and attr.endswith("__"):
+            raise AttributeError(attr)
+        name = self.__name__
+        if sys.modules.get(name) is self:
+            del sys.modules[name]  # the real import replaces the stand-in
+        return getattr(importlib.import_module(name), attr)
+
+
+def _defer(name: str) -> None:
+    """Put a stand-in for module ``name`` where ``import name`` finds it (unless it is
+    imported already or absent)."""
+    if name in sys.modules or importlib.util.find_spec(name.partition(".")[0]) is None:
+        return
+    stand_in = _Deferred(name)
+    parent, _, child = name.rpartition(".")
+    sys.modules[name] = stand_in
+    if parent:
+        setattr(importlib.import_module(parent), child, stand_in)
+
+
+#: Imported by pyvista's plotting package but never used by psurf's views (see above).
+DEFERRED_MODULES = ("matplotlib.pyplot", "pooch")
+for _name in DEFERRED_MODULES:
+    _defer(_name)
 
 import pyvista as pv  # noqa: E402
 import vtkmodules.vtkRenderingOpenGL2  # noqa: E402, F401 - the OpenGL vtkRenderWindow

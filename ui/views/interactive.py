@@ -87,6 +87,7 @@ def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: in
         script = os.environ.get(SCRIPT_ENV)
         if script:
             app.script = [step.strip() for step in script.split(";") if step.strip()]
+        app.open_window()
         plotter.show(title="psurf - photon surfaces, step by step")
     finally:
         app.close()
@@ -119,7 +120,9 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
         self.script: list = []
         self._tags: dict = {}
         self.recorder = None
-        self._gl_checked = False
+        self._gl_checked = False  # software OpenGL looked for (multisampling off)
+        self._shown = False  # the window has rendered its first frame
+        self._recon_warm = None  # the thread loading Reconstruct's kernel (Ticker)
         self._size = tuple(plotter.window_size)
         self._busy_shown = 0.0
         self._t0 = time.perf_counter()
@@ -143,6 +146,7 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
             self._draw_controls()
         if p.iren is None:  # no interactor: nothing to bind (methods can still be called)
             return
+        self._watch_first_frame()
         # VTK's own character shortcuts (w, s, r, p, e, ...) would fight ours.
         p.iren.interactor.RemoveObservers("CharEvent")
         for key in ("Up", "Down", "plus", "minus", "b", "v", "C", "e", "l", "z"):

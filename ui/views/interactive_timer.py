@@ -14,8 +14,10 @@ The mixin uses the app's plotter ``p``, state ``s``, ``controls``, ``script``, `
 
 from __future__ import annotations
 
+import threading
 import time
 
+from psurf_core.inspect import reconstruct_hit
 from psurf_core.render import render_pass
 
 from .compose import CELL_3D, CELL_PANEL, CELL_TITLE, compose_images, compose_panel, software_opengl
@@ -39,7 +41,7 @@ class Ticker:
             return
         s = self.s
         passes = s.prog.passes if s.prog is not None else [s.acc.n]
-        now = {"window": self._gl_checked or self.p.iren is None,
+        now = {"window": self._shown or self.p.iren is None,
                "first-pass": any(passes), "all-passes": all(passes),
                "inspection": s.inspection is not None}
         if not now["window"]:
@@ -52,18 +54,51 @@ class Ticker:
                 print(f"window: time {name} {time.time() - self._launched:.3f} s "
                       f"cpu {time.process_time():.2f} s", flush=True)
 
+    # ---------------------------------------------------------------- start-up
+    def open_window(self) -> None:
+        """Create the window's OpenGL context before its first render (``run`` calls it just
+        before ``plotter.show``), so that its first render is already without multisampling
+        in software OpenGL (:meth:`_check_gl`): that render, every shader compiled for the
+        first time, is the dearest of all (``plotter.show`` of the showcase's window at
+        1600x900 under Xvfb: 0.38-0.40 s of CPU with VTK's 4 samples, 0.21-0.22 s without,
+        load 5)."""
+        rw = self.p.ren_win
+        # X windows only (Linux, Xvfb: what was tried): an EGL window made early and then
+        # shown crashed (VTK 9.7, segmentation fault); elsewhere the first tick does it.
+        if self._gl_checked or rw is None or self.p.off_screen or \
+                type(rw).__name__ != "vtkXOpenGLRenderWindow":
+            return
+        rw.Initialize()
+        self._check_gl()
+
+    def _check_gl(self) -> None:
+        self._gl_checked = True
+        if software_opengl(self.p):
+            # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every full
+            # render ~3-5x dearer (benchmarks/ui_frames.py); the window stays responsive
+            # without it. Screenshots keep it: they are figures, not frames. (Changed after
+            # the first render, the next render goes without it; the picture shown stays.)
+            self.p.ren_win.SetMultiSamples(0)
+
+    def _watch_first_frame(self) -> None:
+        """Stamp ``window`` (:meth:`_stamp`) when the window has rendered its first frame."""
+        rw = self.p.ren_win
+
+        def first(_obj, _event):
+            rw.RemoveObserver(self._tags.pop("first-frame"))
+            self._shown = True
+            self._stamp()
+
+        self._tags["first-frame"] = rw.AddObserver("EndEvent", first)
+
     # ---------------------------------------------------------------- timer
     def tick(self, _step=None) -> None:
         """The timer: a resize, a script step, a rested parameter change, the inspector's
         answers and the render worker's passes (never waits for any of them)."""
-        if not self._gl_checked:  # the first tick: the window and its GL context exist now
-            self._gl_checked = True
-            if software_opengl(self.p):
-                # Without a GPU (Mesa llvmpipe: EGL/OSMesa, Xvfb) multisampling makes every
-                # full render ~3-5x dearer (benchmarks/ui_frames.py); the window stays
-                # responsive without it. Screenshots keep it: they are figures, not frames.
-                # (The next render goes without it; the picture shown stays as it is.)
-                self.p.ren_win.SetMultiSamples(0)
+        if not self._gl_checked:  # the window and its GL context exist now
+            self._check_gl()
+        if not self._shown:
+            self._shown = True
             self._stamp()
         if tuple(self.p.window_size) != self._size:  # resized: lay everything out again
             self._size = tuple(self.p.window_size)
@@ -115,6 +150,30 @@ class Ticker:
             if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
                 self._busy_shown = now
                 self._frame()
+        if not self._render_due:  # after a new stage's composition and its render
+            self._warm_reconstruct()
+
+    def _warm_reconstruct(self) -> None:
+        """Load the Reconstruct stage's compiled kernel (``psurf_core.path_record``'s gather:
+        numba's cache and the modules it imports, ~0.7 s of CPU the first time in a process,
+        which froze the window the first time that stage was shown) in a thread, once, at
+        the end of the first tick after the first inspection was drawn. VTK lets the GIL go
+        while it renders and while the event loop waits, so the loading runs mostly between
+        ticks; a Reconstruct stage asked for meanwhile waits for it (numba's lock) instead of
+        loading it again."""
+        ins = self.s.inspection
+        if self._recon_warm is not None or ins is None or len(ins.table) == 0:
+            return
+
+        def warm():
+            try:
+                reconstruct_hit(ins, 0)
+            except Exception:  # the stage itself reports what goes wrong
+                pass
+
+        self._recon_warm = threading.Thread(target=warm, name="psurf-warm-reconstruct",
+                                            daemon=True)
+        self._recon_warm.start()
 
     def redraw_render(self) -> None:
         """Render the whole window as composed (the second half of a new stage's redraw)."""
