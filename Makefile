@@ -68,7 +68,7 @@ test-slow: $(STAMP) browser
 	$(VPY) -m pytest -q -m slow
 
 # Stage rates per estimator family, 1 vs 2 processes, doubling tables, peak RSS of a 10^6-photon
-# 256x192 pass -> out/bench.json (~10 min on 2 cores); bench-quick: a smaller run (~1 min).
+# 256x192 pass -> out/bench.json (70 s on the idle 2-core machine, 2026-12-03); bench-quick: smaller.
 bench: $(STAMP)
 	$(VPY) benchmarks/run.py
 
