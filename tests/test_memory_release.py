@@ -87,7 +87,9 @@ def test_hit_buffers_hand_back_a_rare_large_need_once_it_is_old():
         del small
         assert resident(storage).sum() * PAGE >= 4_800_000, k  # still recent: kept
     small = pool.take("k", fields, 1000)  # the large need has left the window
-    assert resident(storage).sum() * PAGE <= 24_000 + 2 * PAGE
+    # the need's pages, one more where the storage starts mid-page, and the storage's last,
+    # partial page (it may share a page with another allocation: never released)
+    assert resident(storage).sum() * PAGE <= 24_000 + 3 * PAGE
     small[0][:] = 2.0
     del small
     again = pool.take("k", fields, 200_000)  # the large need again: its pages come back

@@ -50,7 +50,7 @@ def test_worker_process_equals_serial_render(scene):
     specs = ["planes", "mis:plane-t1t2+sphere"]
     with Progressive(scene, specs, SETTINGS, seed=5, workers=1, breakdown=True,
                      max_passes=3) as prog:
-        prog.run(timeout=120)
+        prog.run(timeout=600)
         assert prog.done and prog.passes == [3, 3] and not prog.errors
         for run in prog.runs:
             assert _same(run.acc, _serial(scene, run.spec, 3, 5)), run.spec
@@ -134,7 +134,7 @@ def test_priority_lowers_every_thread_once_or_after_its_time(tmp_path):
 
 def test_two_workers_merge_in_pass_order(scene):
     with Progressive(scene, ["planes"], SETTINGS, seed=8, workers=2, max_passes=5) as prog:
-        prog.run(timeout=120)
+        prog.run(timeout=600)
         assert prog.passes == [5]
         assert _same(prog.runs[0].acc, _serial(scene, "planes", 5, 8))
 
@@ -165,10 +165,10 @@ def test_synchronous_fallback(scene):
 
 def test_reset_drops_passes_and_restarts(scene):
     with Progressive(scene, ["planes"], SETTINGS, seed=0, workers=1, max_passes=2) as prog:
-        prog.run(timeout=120)
+        prog.run(timeout=600)
         prog.reset(estimators=["beams", "planes"], seed=4, max_passes=2)
         assert prog.passes == [0, 0]
-        prog.run(timeout=120)
+        prog.run(timeout=600)
         assert [r.spec for r in prog.runs] == ["beams", "planes"]
         assert _same(prog.runs[0].acc, _serial(scene, "beams", 2, 4))
         assert _same(prog.runs[1].acc, _serial(scene, "planes", 2, 4))
