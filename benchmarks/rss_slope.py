@@ -5,6 +5,8 @@ Usage::
     python benchmarks/rss_slope.py render [--seconds 1800] [--scene S] [--estimator E]
         [--photons N] [--checkpoint-every C] [--jobs J] [--interval 1] [--json OUT.json]
     python benchmarks/rss_slope.py progressive [--seconds 1800] [--estimators A,B] ...
+    xvfb-run -a -s "-screen 0 1700x1000x24" python benchmarks/rss_slope.py window \
+        [--seconds 1800] [--scene S] [--estimators A,B] [--photons N]
 
 ``render`` runs ``app.py render --time SECONDS --checkpoint DIR`` in a subprocess (the
 command a user leaves running) and samples the summed ``VmRSS`` of it and its children
@@ -12,7 +14,11 @@ command a user leaves running) and samples the summed ``VmRSS`` of it and its ch
 background render (:class:`ui.cli.progressive.Progressive`, one worker process, polled ten
 times a second as the window's timer does, every estimator accumulating) in this process
 and samples this process plus its worker; the VTK window itself is not opened. Its clock
-starts once every estimator has its first pass (compiling is reported apart).
+starts once every estimator has its first pass (compiling is reported apart). ``window``
+opens the window itself (``app.py SCENE --estimators A,B``, on the display in ``DISPLAY``:
+run it under ``xvfb-run`` without one), samples it and its children (the render worker,
+the stage inspector) from outside for ``--seconds`` after a ``--warmup`` and closes it
+(SIGTERM); its passes are not checked (``progressive`` checks the same render's).
 
 Reported (and written to ``--json``, with every sample): RSS at the start of the fit,
 at the end, its minimum and maximum, and slopes in MiB per hour over the samples after the
@@ -209,6 +215,34 @@ def run_progressive(args) -> dict:
             "no_pass_lost": verified, **fit(samples, args.warmup, args.floor_window)}
 
 
+def run_window(args) -> dict:
+    """The window left open, sampled from outside (module doc)."""
+    if not os.environ.get("DISPLAY"):
+        raise SystemExit("window: no DISPLAY (run under xvfb-run -a)")
+    cmd = [sys.executable, str(ROOT / "app.py"), args.scene, "--estimators", args.estimators,
+           "--photons", str(args.photons)]
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    t0 = time.monotonic()
+    samples = []
+    try:
+        while p.poll() is None and time.monotonic() - t0 < args.seconds + args.warmup:
+            samples.append((time.monotonic() - t0, rss_bytes(p.pid)))
+            time.sleep(args.interval)
+    finally:
+        alive = p.poll() is None
+        p.terminate()
+        try:
+            _, stderr = p.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            _, stderr = p.communicate()
+    if not alive:
+        raise SystemExit(f"the window ended early ({p.returncode}): {stderr.strip()[-500:]}")
+    samples = [s for s in samples if s[1] > 0]
+    return {"mode": "window", "command": " ".join(cmd[1:]), "no_pass_lost": None,
+            **fit(samples, args.warmup, args.floor_window)}
+
+
 def _commit() -> str | None:
     """The checkout's commit (``-dirty`` with uncommitted changes), or None outside git."""
     try:
@@ -223,7 +257,7 @@ def _commit() -> str | None:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("mode", choices=("render", "progressive"))
+    p.add_argument("mode", choices=("render", "progressive", "window"))
     p.add_argument("--seconds", type=float, default=1800.0)
     p.add_argument("--scene", default=str(ROOT / "scenes" / "area.toml"))
     p.add_argument("--estimator", default="planes")
@@ -243,7 +277,8 @@ def main(argv=None) -> int:
     p.add_argument("--json", default=None, metavar="OUT.json")
     args = p.parse_args(argv)
     started, load_before = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()), os.getloadavg()
-    result = run_render(args) if args.mode == "render" else run_progressive(args)
+    run = {"render": run_render, "progressive": run_progressive, "window": run_window}
+    result = run[args.mode](args)
     result.update(argv=sys.argv, commit=_commit(), started=started,
                   ended=time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
                   load_average_before_after=[round(load_before[0], 2),
