@@ -26,7 +26,8 @@ def main(a_path: str, b_path: str) -> None:
     print(f"passes {int(a['passes'])} vs {int(b['passes'])}; "
           f"sum ratio B/A {mb.sum() / ma.sum():.5f}")
     print(f"mean |z| {np.abs(z).mean():.3f} (0.798 expected), "
-          f"rms z {np.sqrt((z ** 2).mean()):.3f}, max |z| {np.abs(z).max():.2f}, share |z| > 3 {(np.abs(z) > 3).mean():.4f}")
+          f"rms z {np.sqrt((z ** 2).mean()):.3f}, max |z| {np.abs(z).max():.2f}, "
+          f"share |z| > 3 {(np.abs(z) > 3).mean():.4f}")
     for name, mean, var in (("A", ma, va), ("B", mb, vb)):
         floor = (var / (mean ** 2 + 0.01 * mean.mean() ** 2)).mean()
         print(f"relMSE floor {name} {floor:.2e}")
