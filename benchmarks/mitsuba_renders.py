@@ -235,6 +235,31 @@ def render_part(renderer, case, scene, scene_path, kmin, kmax, args) -> dict:
     return d | {"path": str(path), "render_seconds": took}
 
 
+def reference_from_file(path, kmin: int, kmax: int) -> dict:
+    """A case's reference read from an ``app.py render``-style .npz (``--reference-file``):
+    the dict of :func:`reference`, its one part the file's renderer. The file must be for the
+    case's scatter window; it should come from no contestant (another estimator, another seed).
+    """
+    path = Path(path)
+    try:
+        d = load_npz(path)
+    except (OSError, ValueError, KeyError) as e:
+        raise SystemExit(f"--reference-file {path}: not a render .npz ({e})") from None
+    if (int(d["min_scatter"]), int(d["max_scatter"])) != (kmin, kmax):
+        raise SystemExit(f"--reference-file {path}: rendered for K={d['min_scatter']}.."
+                         f"{d['max_scatter']}, the case is K={kmin}..{kmax}")
+    passes = max(int(d["passes"]), 1)
+    part = {"renderer": "file", "min_scatter": kmin, "max_scatter": kmax,
+            "estimator": str(d.get("estimator", "?")), "passes": passes,
+            "spp": int(d.get("spp", 1)),
+            "photons_per_pass": (int(d["photons_per_pass"]) if "photons_per_pass" in d
+                                 else None),
+            "seed": (int(d["seed"]) if "seed" in d else None),
+            "seconds": float(d.get("seconds", 0.0)), "file": str(path), "render_seconds": None}
+    return {"mean": d["mean"], "var_mean": d["var"] / passes, "seconds": part["seconds"],
+            "parts": [part], "file": str(path)}
+
+
 def reference(case, scene, scene_path, kmin, kmax, args) -> dict:
     """The case's reference: the sum of its :func:`reference_parts`, each ``--ref-time``
     seconds (independent renders, so the variances of their means add), also written to

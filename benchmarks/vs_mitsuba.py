@@ -6,7 +6,7 @@ Usage::
         [--estimator SPEC | --estimator CASE=SPEC ...] [--photons auto|N] [--jobs 2]
         [--reference composite|mitsuba|psurf] [--mitsuba-spp N] [--variant V] [--seed S]
         [--out out/vs_mitsuba.json] [--md out/vs_mitsuba.md] [--work out/vs_mitsuba]
-        [--ref-clock wall|cpu] [--refs-only]
+        [--ref-clock wall|cpu] [--refs-only] [--reference-file CASE=PATH ...]
 
 (``make bench-mitsuba`` installs the ``bench`` extra and runs it.) For each case of
 :data:`CASES` (a bundled scene and a scatter window ``[min_scatter, max_scatter]``):
@@ -23,7 +23,8 @@ Usage::
    The K = 1 part shares no code with psurf; the K >= 2 part shares psurf's tracing but not the
    contestant's estimator, and Mitsuba's image-sum z against it checks it.
    ``--reference mitsuba`` (or ``psurf``, its ``reference`` path tracer) renders the whole
-   window with one path tracer instead.
+   window with one path tracer instead; ``--reference-file CASE=PATH`` reads a case's
+   reference from an ``app.py render`` .npz (e.g. docs/study.md's long references).
 2. **psurf**: ``app.py render SCENE --estimator SPEC --time T --jobs J --photons N`` with the
    window's ``--min-scatter/--max-scatter`` (``SPEC`` from :func:`recommended`, or
    ``--estimator``); kernels compile before its clock starts. ``N`` is ``--photons``, by
@@ -151,7 +152,7 @@ def _above(relmse_value: float, floor: float) -> float | None:
 def run_case(case, scene_path, kmin, kmax, estimator, args) -> dict:
     """Reference, psurf and Mitsuba for one case; the row of the table."""
     scene = load_scene(ROOT / scene_path).with_scatter(kmin, kmax)
-    ref = mr.reference(case, scene, scene_path, kmin, kmax, args)
+    ref = _reference(case, scene, scene_path, kmin, kmax, args)
     work = Path(args.work)
     photons = (mr.psurf_photons(scene, estimator, args.time) if args.photons == "auto"
                else int(args.photons))
@@ -168,7 +169,8 @@ def run_case(case, scene_path, kmin, kmax, estimator, args) -> dict:
     return {
         "case": case, "scene": scene_path, "min_scatter": kmin, "max_scatter": kmax,
         "estimator": estimator,
-        "reference": {"kind": args.reference, "seconds": ref["seconds"],
+        "reference": {"kind": "file" if case in args.reference_files else args.reference,
+                      "seconds": ref["seconds"],
                       "parts": ref["parts"], "relmse_floor": floor, "file": ref["file"]},
         "psurf": {k: ps[k] for k in (*keep, "photons_per_pass", "process_wall_seconds",
                                      "command")} | sp | {"photons_from": str(args.photons)},
@@ -179,6 +181,26 @@ def run_case(case, scene_path, kmin, kmax, estimator, args) -> dict:
         "var_ratio": _ratio(sp["var"], sm["var"]),
         "relvar_ratio_time_normalized": tn,
     }
+
+
+def _reference(case, scene, scene_path, kmin, kmax, args) -> dict:
+    """The case's ``--reference-file``, else its rendered (or cached) reference."""
+    if case in args.reference_files:
+        return mr.reference_from_file(args.reference_files[case], kmin, kmax)
+    return mr.reference(case, scene, scene_path, kmin, kmax, args)
+
+
+def _reference_files(flags: list[str], names) -> dict[str, str]:
+    out = {}
+    for f in flags:
+        case, eq, path = f.partition("=")
+        if not eq or case not in names:
+            raise SystemExit(f"--reference-file {f}: expected CASE=PATH with CASE one of "
+                             f"{', '.join(names)}")
+        if not Path(path).is_file():
+            raise SystemExit(f"--reference-file {f}: no file {path}")
+        out[case] = path
+    return out
 
 
 def _f(x, fmt=".3g"):
@@ -241,7 +263,7 @@ def refs_only(cases, args) -> int:
     t0 = time.perf_counter()
     for case, scene_path, kmin, kmax in cases:
         scene = load_scene(ROOT / scene_path).with_scatter(kmin, kmax)
-        ref = mr.reference(case, scene, scene_path, kmin, kmax, args)
+        ref = _reference(case, scene, scene_path, kmin, kmax, args)
         for p in ref["parts"]:
             took = ("cached" if p["render_seconds"] is None
                     else f"rendered in {p['render_seconds']:.0f} s")
@@ -273,6 +295,9 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2, help="psurf --jobs and Dr.Jit threads")
     ap.add_argument("--reference", choices=("composite", "mitsuba", "psurf"),
                     default="composite", help="reference_parts() (default: composite)")
+    ap.add_argument("--reference-file", action="append", default=[], metavar="CASE=PATH",
+                    help="use an app.py render .npz as CASE's reference (repeat; it must "
+                         "come from no contestant), instead of rendering one")
     ap.add_argument("--mitsuba-spp", type=int, default=None,
                     help="Mitsuba samples per pixel per pass (default: calibrated)")
     ap.add_argument("--variant", default=None, help="Mitsuba variant (default: probed)")
@@ -290,6 +315,7 @@ def main(argv=None) -> int:
         ap.error(f"unknown case(s) {', '.join(bad)}; cases: {', '.join(names)}")
     cases = [c for c in CASES if c[0] in wanted]
     estimators = _estimators(args.estimator, cases)
+    args.reference_files = _reference_files(args.reference_file, names)
     variant = ms.pick_variant(args.variant)
     Path(args.work).mkdir(parents=True, exist_ok=True)
     if args.refs_only:

@@ -338,3 +338,26 @@ def test_summed_reference_is_a_compare_reference(tmp_path, monkeypatch):
     assert loaded.floor == pytest.approx(var_relmse(ref["var_mean"], ref["mean"]))
     with pytest.raises(Exception, match="scatter"):
         load_reference(ref["file"], scene.with_scatter(1, 1))
+
+
+def test_reference_file_is_read_with_its_window(tmp_path):
+    """``--reference-file CASE=PATH``: a render .npz becomes the case's reference (variance of
+    the mean = var / passes); another scatter window, a missing file or an unknown case is one
+    clear error."""
+    rng = np.random.default_rng(5)
+    mean, var = rng.random((H, W, 3)) + 0.5, rng.random((H, W, 3))
+    path = tmp_path / "ref.npz"
+    np.savez(path, mean=mean, var=var, passes=np.int64(8), spp=np.int64(1),
+             seconds=np.float64(3.0), min_scatter=np.int64(2), max_scatter=np.int64(3),
+             estimator=np.str_("paper-multi"), seed=np.int64(1000))
+    ref = mr.reference_from_file(path, 2, 3)
+    np.testing.assert_allclose(ref["mean"], mean)
+    np.testing.assert_allclose(ref["var_mean"], var / 8)
+    assert ref["parts"][0]["estimator"] == "paper-multi" and ref["parts"][0]["seed"] == 1000
+    with pytest.raises(SystemExit, match="K=2..3, the case is K=1..1"):
+        mr.reference_from_file(path, 1, 1)
+    names = [c[0] for c in vs_mitsuba.CASES]
+    assert vs_mitsuba._reference_files([f"hg={path}"], names) == {"hg": str(path)}
+    for bad in (f"nosuch={path}", str(path), f"hg={tmp_path / 'missing.npz'}"):
+        with pytest.raises(SystemExit, match="--reference-file"):
+            vs_mitsuba._reference_files([bad], names)
