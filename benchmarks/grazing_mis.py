@@ -63,13 +63,16 @@ def main(argv=None) -> int:
                       img_res=img_res):
                 ctx = PassContext(scene, blk, 0.0, i)
                 r = tech.reconstruct(h, prims, rec.paths[-1], rays, ctx)
-                q = member_densities(r, group, ctx)
+                # Sample counts (``@share``): the heuristic weighs n_j Q_j and a member's
+                # hits stand for all photons (/ n_me), as psurf_core.mis.mis_weights.
+                n_j = np.array([float(getattr(m, "share", 1.0)) for m in group])
+                q = member_densities(r, group, ctx) * n_j[:, None]
                 me = next(j for j, m in enumerate(group) if m is tech)
                 grazing = (np.abs(np.einsum("ij,ij->i", np.cross(r.w1, r.w2), r.psi)) < tau) \
                     & (r.K >= 2)
                 q[1:] *= grazing  # the helpers' densities: 0 outside D
                 den = q.sum(axis=0)
-                w = np.where(den > 0, q[me] / np.where(den > 0, den, 1.0), 0.0)
+                w = np.where(den > 0, q[me] / np.where(den > 0, den, 1.0), 0.0) / n_j[me]
                 keep = np.ones(len(h), bool) if me == 0 else grazing
                 pix = rays.pixel[h.ray]
                 for c in range(3):
