@@ -44,6 +44,7 @@ from . import trace_numpy as ref
 from . import trace_shadow as shadow
 from .kernels.buffers import HitBuffers
 from .kernels.jit import kernel, twin
+from .kernels.threads import in_pieces, thread_count
 from .kernels.shadow import BlockerRow
 from .records import load
 from .trace_buffers import REC_CLIP, REC_T, REC_W
@@ -194,16 +195,20 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     return k, nn
 
 
-@kernel
-def assemble(x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas, alives,
-             clips, prefix_ok):  # pragma: no cover - compiled
-    """``trace.assemble``: scatter the step records into the photon-major ``PhotonPaths``
-    arrays, recomputing each vertex (``advance``) and weight (``scattered_weight``) as the
-    reference computed them. Each step's records are in photon order and a photon's
-    segments are consecutive from segment 1, so one cursor per step walks them.
+@kernel(nogil=True)
+def assemble(p0, p1, x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas,
+             alives, clips, prefix_ok):  # pragma: no cover - compiled
+    """``trace.assemble`` for photons ``p0 .. p1 - 1``: scatter the step records into the
+    photon-major ``PhotonPaths`` arrays, recomputing each vertex (``advance``) and weight
+    (``scattered_weight``) as the reference computed them. Each step's records are in photon
+    order and a photon's segments are consecutive from segment 1, so one cursor per step
+    (found by binary search for ``p0``) walks them. Photon ranges write disjoint rows: the
+    driver runs ranges on several threads (the GIL released).
 
     Parameters
     ----------
+    p0, p1 : int
+        The photons to write.
     x0, beta0 : (N, 3) float
         Light points, emitted weights (W).
     q : (D,) float
@@ -215,11 +220,13 @@ def assemble(x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas
         Step records; step ``s`` holds rows ``rec_off[s] .. rec_off[s + 1] - 1``.
     rec_off : (D + 1,) int64
     xs, ws, ts, betas, alives, clips, prefix_ok
-        Outputs, shapes as in ``PhotonPaths`` (written entirely).
+        Outputs, shapes as in ``PhotonPaths`` (rows ``p0 .. p1 - 1`` written entirely).
     """
-    n, d = xs.shape[0], ts.shape[1]
-    cur = rec_off[:d].copy()
-    for p in range(n):
+    d = ts.shape[1]
+    cur = np.empty(d, np.int64)
+    for s in range(d):
+        cur[s] = rec_off[s] + np.searchsorted(rec_idx[rec_off[s]:rec_off[s + 1]], p0)
+    for p in range(p0, p1):
         v = (x0[p, 0], x0[p, 1], x0[p, 2])
         xs[p, 0, 0], xs[p, 0, 1], xs[p, 0, 2] = v
         bp = (beta0[p, 0], beta0[p, 1], beta0[p, 2])
@@ -246,7 +253,7 @@ def assemble(x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas
             alives[p, s] = run
             xs[p, s + 1, 0], xs[p, s + 1, 1], xs[p, s + 1, 2] = v
     for s in range(d + 1):  # vertex-major reads: contiguous (photon-major: 1.4 ms more)
-        for p in range(n):
+        for p in range(p0, p1):
             prefix_ok[p, s] = oks[s, p]
 
 
@@ -265,6 +272,9 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         Segments to trace at most.
     """
     med = scene.medium
+    # Threads for the elementwise steps and assemble (each element or photon written from its
+    # own inputs: the arrays do not depend on the count). The depth kernel stays serial.
+    threads = thread_count()
     box = buffers.constants(_box, med)
     rows, test_all = buffers.constants(shadow.table, blockers)
     ws = buffers.workspace(n, depth)
@@ -283,9 +293,10 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         nr = (3 if j > 1 else 1) * m
         rj = rng.random(out=r[:nr])
         lg = rj[nr - m :]
-        np.log1p(np.negative(lg, out=lg), out=lg)
+        in_pieces(lambda a, b, lg=lg: np.log1p(np.negative(lg[a:b], out=lg[a:b]), out=lg[a:b]),
+                  m, threads, emission.ELEMENTWISE_MIN)
         if j > 1:
-            cphi, sphi = emission.azimuth(rj[m : 2 * m], ws.sin[:m])
+            cphi, sphi = emission.azimuth(rj[m : 2 * m], ws.sin[:m], threads)
         else:
             cphi = sphi = empty
         # Then segment j + 1's roulette variates (the reference draws them next).
@@ -314,10 +325,16 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         ("x", (n, d + 1, 3), np.float64), ("w", (n, d, 3), np.float64), ("t", (n, d), np.float64),
         ("beta", (n, d, 3), np.float64), ("alive", (n, d), np.bool_),
         ("clip", (n, d, 2), np.float64), ("prefix_ok", (n, d + 1), np.bool_)])
-    assemble(e["x0"], e["beta"], np.array(qs[:d]), med.albedo, oks, ws.rec_idx, ws.rec,
-             np.array(rec_off, dtype=np.int64), p["x"], p["w"], p["t"], p["beta"],
-             p["alive"], p["clip"], p["prefix_ok"])
+    args = (e["x0"], e["beta"], np.array(qs[:d]), med.albedo, oks, ws.rec_idx, ws.rec,
+            np.array(rec_off, dtype=np.int64), p["x"], p["w"], p["t"], p["beta"], p["alive"],
+            p["clip"], p["prefix_ok"])
+    # Memory-bound (~50 MB written per 32768 photons): two threads write faster than one.
+    in_pieces(lambda a, b: assemble(a, b, *args), n, threads, ASSEMBLE_MIN)
     return ref.PhotonPaths(n_emitted=n, **{k: e[k] for k in out}, **p)
+
+
+#: Photons per thread below which ``assemble`` runs on one thread.
+ASSEMBLE_MIN = 2048
 
 
 def _box(med) -> np.ndarray:

@@ -117,3 +117,18 @@ def on_threads(fn, n: int, threads: int) -> None:
     finally:
         for f in helpers:
             f.result()
+
+
+def in_pieces(fn, n: int, threads: int, min_size: int = 1) -> None:
+    """``fn(a, b)`` over ``0 .. n - 1`` cut into consecutive ranges ``[a, b)``, run on
+    ``threads`` threads (:func:`on_threads`, ``PIECES_PER_THREAD`` ranges per thread). For
+    work whose result does not depend on the cut (each element written from its own
+    inputs): numpy ufuncs, which release the GIL, and kernels over independent rows. Below
+    ``min_size`` elements per thread it runs ``fn(0, n)`` here (handing out costs ~50 us)."""
+    if threads <= 1 or n < threads * max(min_size, 1):
+        if n:
+            fn(0, n)
+        return
+    k = min(threads * PIECES_PER_THREAD, n)
+    cut = [n * i // k for i in range(k + 1)]
+    on_threads(lambda j: fn(cut[j], cut[j + 1]), k, threads)
