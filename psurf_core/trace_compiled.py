@@ -44,7 +44,7 @@ from . import trace_numpy as ref
 from . import trace_shadow as shadow
 from .kernels.buffers import HitBuffers
 from .kernels.jit import kernel, twin
-from .kernels.threads import in_pieces, thread_count
+from .kernels.threads import PIECES_PER_THREAD, in_pieces, on_threads, thread_count
 from .kernels.shadow import BlockerRow
 from .records import load
 from .trace_buffers import REC_CLIP, REC_T, REC_W
@@ -104,17 +104,20 @@ def scattered_weight(beta, q, albedo):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- depth steps
-@kernel
-def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u, box,
+@kernel(nogil=True)
+def step(i0, i1, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u, box,
          ok_prev, ok_cur, select, ok_look, u_next, q_next, rec_idx, rec, off, near_photon,
          near_a, near_b, near_inside, blockers, test_all):  # pragma: no cover - compiled
-    """Segment ``j`` of the ``m`` active photons (``trace.step``), then the selection of
-    segment ``j + 1``'s photons (``trace.survives``), compacting the state in place.
+    """Segment ``j`` of the active photons in state rows ``i0 .. i1 - 1`` (``trace.step``),
+    then the selection of segment ``j + 1``'s photons (``trace.survives``), compacting the
+    state in place from row ``i0`` and listing the near segments from row ``i0``: a range
+    reads and writes only its own rows (and ``ok_cur`` of its own photons), so the driver
+    runs ranges on several threads and closes up their outputs (:func:`_steps`).
 
     Parameters
     ----------
-    m : int
-        Active photons: state rows ``0 .. m - 1``, in photon order.
+    i0, i1 : int
+        The state rows to step (active photons, in photon order).
     scatter : bool
         Sample a new direction (every segment but the first): ``phase_cosine``,
         ``direction_about``.
@@ -124,7 +127,7 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     x, w : (P, 3) float
         State: photon, start vertex and direction of each active photon; on return, rows
         ``0 .. k - 1`` hold the selected photons' end vertex and direction.
-    u_mu, cos_phi, sin_phi, log1p_neg_u : (m,) float
+    u_mu, cos_phi, sin_phi, log1p_neg_u : (>= i1,) float
         Variates of the phase cosine, ``cos``/``sin`` of the azimuth, ``log1p(-u)`` of the
         flight.
     box : (2, 3) float
@@ -136,12 +139,12 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
         Select segment ``j + 1``'s photons (else keep every row).
     ok_look : (N,) bool
         ``prefix_ok`` of vertex ``j + 1 - LOOKBACK``.
-    u_next : (m,) float
+    u_next : (>= i1,) float
         Roulette variates of segment ``j + 1`` (unused when ``q_next >= 1``).
     q_next : float
     rec_idx : (R,) int64
     rec : (R, REC_COLS) float
-        Step records, written at rows ``off .. off + m - 1``.
+        Step records, written at rows ``off + i0 .. off + i1 - 1``.
     off : int
     near_photon : (P,) int64
     near_a, near_b : (P, 3) float
@@ -155,13 +158,13 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     Returns
     -------
     k : int
-        Photons selected for segment ``j + 1``.
+        End of the selected photons' rows (``k - i0`` selected for segment ``j + 1``).
     nn : int
-        Near segments listed.
+        End of the near segments' rows (``nn - i0`` listed).
     """
     bmin, bmax = (box[0, 0], box[0, 1], box[0, 2]), (box[1, 0], box[1, 1], box[1, 2])
-    k, nn = 0, 0
-    for i in range(m):
+    k, nn = i0, i0
+    for i in range(i0, i1):
         p = idx[i]
         a = (x[i, 0], x[i, 1], x[i, 2])
         d = (w[i, 0], w[i, 1], w[i, 2])
@@ -273,7 +276,8 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
     """
     med = scene.medium
     # Threads for the elementwise steps and assemble (each element or photon written from its
-    # own inputs: the arrays do not depend on the count). The depth kernel stays serial.
+    # own inputs; the depth kernel's ranges are closed up in order: the arrays do not depend
+    # on the count).
     threads = thread_count()
     box = buffers.constants(_box, med)
     rows, test_all = buffers.constants(shadow.table, blockers)
@@ -307,10 +311,12 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         ws.records(off + m)
         ok = oks[j]
         ok[:n] = False
-        k, nn = step(m, j > 1, med.phase.g, med.sigma_t, idx, x, w, rj[:m], cphi, sphi, lg,
-                     box, oks[j - 1], ok, select, oks[max(j + 1 - ref.LOOKBACK, 0)], u_next,
-                     q_next, ws.rec_idx, ws.rec, off, ws.near_photon, ws.near_a, ws.near_b,
-                     ws.near_inside, rows, test_all)
+        args = (j > 1, med.phase.g, med.sigma_t, idx, x, w, rj[:m], cphi, sphi, lg, box,
+                oks[j - 1], ok, select, oks[max(j + 1 - ref.LOOKBACK, 0)], u_next, q_next,
+                ws.rec_idx, ws.rec, off, ws.near_photon, ws.near_a, ws.near_b,
+                ws.near_inside, rows, test_all)
+        k, nn = _steps(m, threads, args, (idx, x, w),
+                       (ws.near_photon, ws.near_a, ws.near_b, ws.near_inside))
         if nn and shadow.shade(nn, ws.near_a, ws.near_b, ws.near_inside, rows, test_all, ok,
                                ws.near_photon, ws.verdict):
             shadow.resolve(ws.near_photon[:nn], ws.near_a[:nn], ws.near_b[:nn],
@@ -333,6 +339,40 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
     return ref.PhotonPaths(n_emitted=n, **{k: e[k] for k in out}, **p)
 
 
+def _steps(m: int, threads: int, args: tuple, state: tuple, near: tuple) -> tuple[int, int]:
+    """:func:`step` over state rows ``0 .. m - 1``, in ranges on ``threads`` threads, the
+    ranges' selected rows (``state``) and near segments (``near``) then closed up in range
+    order: the rows and their order are those of one call over all rows.
+
+    Returns
+    -------
+    (k, nn) : the selected photons and the near segments, rows ``0 ..`` of each.
+    """
+    if threads <= 1 or m < threads * STEP_MIN:
+        return step(0, m, *args)
+    n_pieces = threads * PIECES_PER_THREAD
+    cut = [m * i // n_pieces for i in range(n_pieces + 1)]
+    ends = [(0, 0)] * n_pieces
+
+    def piece(j):
+        ends[j] = step(cut[j], cut[j + 1], *args)
+
+    on_threads(piece, n_pieces, threads)
+    k, nn = ends[0]
+    for j in range(1, n_pieces):
+        a, (kj, nj) = cut[j], ends[j]
+        if kj > a:  # numpy copies overlapping slices as if through a buffer
+            for arr in state:
+                arr[k : k + kj - a] = arr[a:kj]
+        if nj > a:
+            for arr in near:
+                arr[nn : nn + nj - a] = arr[a:nj]
+        k, nn = k + kj - a, nn + nj - a
+    return k, nn
+
+
+#: State rows per thread below which :func:`step` runs on one thread.
+STEP_MIN = 4096
 #: Photons per thread below which ``assemble`` runs on one thread.
 ASSEMBLE_MIN = 2048
 

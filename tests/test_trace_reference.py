@@ -98,12 +98,13 @@ def test_workspace_reuse(monkeypatch):
 
 @pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
 def test_threads_change_nothing(monkeypatch, name):
-    """The elementwise steps and ``assemble`` cut into pieces on two threads (thresholds
+    """The depth kernel, the elementwise steps and ``assemble`` cut into pieces on two threads (thresholds
     lowered so that a small batch is cut) give the compiled single-thread bytes and the
     reference's, and leave the generator in the same state."""
     sc = dense(name)
     monkeypatch.setattr(trace_compiled, "thread_count", lambda: 2)
     monkeypatch.setattr(trace_compiled, "ASSEMBLE_MIN", 16)
+    monkeypatch.setattr(trace_compiled, "STEP_MIN", 16)
     monkeypatch.setattr(trace_emit_compiled, "ELEMENTWISE_MIN", 16)
     pieces = []
     real = trace_compiled.in_pieces
