@@ -23,6 +23,13 @@ Where this path differs from the numpy reference in work, not in values:
   ``trace_shadow.shade`` decides what ``Blockers.occluded`` answers for the near segments
   from rounding bounds, and only a depth with an undecided one calls ``Blockers.occluded``,
   on all its near segments: exactly the rows the reference's call keeps for its exact test;
+* **threads** (:func:`psurf_core.kernels.threads.thread_count`, 1 in pass-pool workers): the
+  depth kernel runs over ranges of the active photons, each compacting and listing its near
+  segments from its own first row, closed up in range order afterwards (:func:`_steps`);
+  ``log1p``, ``sin`` and ``cos`` run over ranges of their arrays and ``assemble`` over ranges
+  of photons (:func:`psurf_core.kernels.threads.in_pieces`). Every element is computed from
+  its own inputs, so the arrays do not depend on the thread count
+  (``tests/test_trace_reference.py``); the random numbers are drawn on this thread, in order;
 * **memory**: scratch in a per-thread workspace (:mod:`psurf_core.trace_buffers`), outputs
   in ``kernels.buffers`` reused once the caller has dropped them: no page faults on fresh
   memory per batch.
