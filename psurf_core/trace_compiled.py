@@ -51,8 +51,8 @@ from . import trace_numpy as ref
 from . import trace_shadow as shadow
 from .kernels.buffers import HitBuffers
 from .kernels.jit import kernel, twin
-from .kernels.threads import PIECES_PER_THREAD, in_pieces, on_threads, thread_count
 from .kernels.shadow import BlockerRow
+from .kernels.threads import PIECES_PER_THREAD, in_pieces, on_threads, thread_count
 from .records import load
 from .trace_buffers import REC_CLIP, REC_T, REC_W
 

@@ -98,9 +98,9 @@ def test_workspace_reuse(monkeypatch):
 
 @pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
 def test_threads_change_nothing(monkeypatch, name):
-    """The depth kernel, the elementwise steps and ``assemble`` cut into pieces on two threads (thresholds
-    lowered so that a small batch is cut) give the compiled single-thread bytes and the
-    reference's, and leave the generator in the same state."""
+    """The depth kernel, the elementwise steps and ``assemble`` cut into pieces on two
+    threads (thresholds lowered so that a small batch is cut) give the reference's bytes and
+    leave the generator in the same state."""
     sc = dense(name)
     monkeypatch.setattr(trace_compiled, "thread_count", lambda: 2)
     monkeypatch.setattr(trace_compiled, "ASSEMBLE_MIN", 16)
