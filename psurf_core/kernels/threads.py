@@ -78,6 +78,8 @@ def thread_count() -> int:
     return n
 
 
+#: Name prefix of :func:`on_threads`' helper threads.
+_POOL_NAME = "psurf-pieces"
 #: Helper threads of :func:`on_threads` (started on first use, shared by all callers).
 _HELPERS: dict[int, ThreadPoolExecutor] = {}
 # A forked child has none of the parent's threads: its pools would never run a task.
@@ -89,13 +91,15 @@ def on_threads(fn, n: int, threads: int) -> None:
     """``fn(j)`` for ``j = 0 .. n - 1`` on ``threads`` threads (this one and ``threads - 1``
     helpers), each taking the next ``j`` when free. An exception (Ctrl-C included) stops the
     handing out; the helpers finish the item they hold, then it is re-raised."""
-    if threads <= 1:
+    # On a helper thread (a piece that hands out pieces itself) the pool's only free thread
+    # may be this one: waiting for a queued piece would wait for ever. Run them here.
+    if threads <= 1 or threading.current_thread().name.startswith(_POOL_NAME):
         for j in range(n):
             fn(j)
         return
     pool = _HELPERS.get(threads - 1)
     if pool is None:
-        pool = _HELPERS[threads - 1] = ThreadPoolExecutor(threads - 1, "psurf-planes")
+        pool = _HELPERS[threads - 1] = ThreadPoolExecutor(threads - 1, _POOL_NAME)
     items = iter(range(n))
     lock = threading.Lock()
     stop = []
