@@ -23,6 +23,13 @@ Where this path differs from the numpy reference in work, not in values:
   ``trace_shadow.shade`` decides what ``Blockers.occluded`` answers for the near segments
   from rounding bounds, and only a depth with an undecided one calls ``Blockers.occluded``,
   on all its near segments: exactly the rows the reference's call keeps for its exact test;
+* **threads** (:func:`psurf_core.kernels.threads.thread_count`, 1 in pass-pool workers): the
+  depth kernel runs over ranges of the active photons, each compacting and listing its near
+  segments from its own first row, closed up in range order afterwards (:func:`_steps`);
+  ``log1p``, ``sin`` and ``cos`` run over ranges of their arrays and ``assemble`` over ranges
+  of photons (:func:`psurf_core.kernels.threads.in_pieces`). Every element is computed from
+  its own inputs, so the arrays do not depend on the thread count
+  (``tests/test_trace_reference.py``); the random numbers are drawn on this thread, in order;
 * **memory**: scratch in a per-thread workspace (:mod:`psurf_core.trace_buffers`), outputs
   in ``kernels.buffers`` reused once the caller has dropped them: no page faults on fresh
   memory per batch.
@@ -45,6 +52,7 @@ from . import trace_shadow as shadow
 from .kernels.buffers import HitBuffers
 from .kernels.jit import kernel, twin
 from .kernels.shadow import BlockerRow
+from .kernels.threads import PIECES_PER_THREAD, in_pieces, on_threads, thread_count
 from .records import load
 from .trace_buffers import REC_CLIP, REC_T, REC_W
 
@@ -103,17 +111,20 @@ def scattered_weight(beta, q, albedo):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- depth steps
-@kernel
-def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u, box,
+@kernel(nogil=True)
+def step(i0, i1, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u, box,
          ok_prev, ok_cur, select, ok_look, u_next, q_next, rec_idx, rec, off, near_photon,
          near_a, near_b, near_inside, blockers, test_all):  # pragma: no cover - compiled
-    """Segment ``j`` of the ``m`` active photons (``trace.step``), then the selection of
-    segment ``j + 1``'s photons (``trace.survives``), compacting the state in place.
+    """Segment ``j`` of the active photons in state rows ``i0 .. i1 - 1`` (``trace.step``),
+    then the selection of segment ``j + 1``'s photons (``trace.survives``), compacting the
+    state in place from row ``i0`` and listing the near segments from row ``i0``: a range
+    reads and writes only its own rows (and ``ok_cur`` of its own photons), so the driver
+    runs ranges on several threads and closes up their outputs (:func:`_steps`).
 
     Parameters
     ----------
-    m : int
-        Active photons: state rows ``0 .. m - 1``, in photon order.
+    i0, i1 : int
+        The state rows to step (active photons, in photon order).
     scatter : bool
         Sample a new direction (every segment but the first): ``phase_cosine``,
         ``direction_about``.
@@ -123,7 +134,7 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     x, w : (P, 3) float
         State: photon, start vertex and direction of each active photon; on return, rows
         ``0 .. k - 1`` hold the selected photons' end vertex and direction.
-    u_mu, cos_phi, sin_phi, log1p_neg_u : (m,) float
+    u_mu, cos_phi, sin_phi, log1p_neg_u : (>= i1,) float
         Variates of the phase cosine, ``cos``/``sin`` of the azimuth, ``log1p(-u)`` of the
         flight.
     box : (2, 3) float
@@ -135,12 +146,12 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
         Select segment ``j + 1``'s photons (else keep every row).
     ok_look : (N,) bool
         ``prefix_ok`` of vertex ``j + 1 - LOOKBACK``.
-    u_next : (m,) float
+    u_next : (>= i1,) float
         Roulette variates of segment ``j + 1`` (unused when ``q_next >= 1``).
     q_next : float
     rec_idx : (R,) int64
     rec : (R, REC_COLS) float
-        Step records, written at rows ``off .. off + m - 1``.
+        Step records, written at rows ``off + i0 .. off + i1 - 1``.
     off : int
     near_photon : (P,) int64
     near_a, near_b : (P, 3) float
@@ -154,13 +165,13 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     Returns
     -------
     k : int
-        Photons selected for segment ``j + 1``.
+        End of the selected photons' rows (``k - i0`` selected for segment ``j + 1``).
     nn : int
-        Near segments listed.
+        End of the near segments' rows (``nn - i0`` listed).
     """
     bmin, bmax = (box[0, 0], box[0, 1], box[0, 2]), (box[1, 0], box[1, 1], box[1, 2])
-    k, nn = 0, 0
-    for i in range(m):
+    k, nn = i0, i0
+    for i in range(i0, i1):
         p = idx[i]
         a = (x[i, 0], x[i, 1], x[i, 2])
         d = (w[i, 0], w[i, 1], w[i, 2])
@@ -194,16 +205,20 @@ def step(m, scatter, g, sigma_t, idx, x, w, u_mu, cos_phi, sin_phi, log1p_neg_u,
     return k, nn
 
 
-@kernel
-def assemble(x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas, alives,
-             clips, prefix_ok):  # pragma: no cover - compiled
-    """``trace.assemble``: scatter the step records into the photon-major ``PhotonPaths``
-    arrays, recomputing each vertex (``advance``) and weight (``scattered_weight``) as the
-    reference computed them. Each step's records are in photon order and a photon's
-    segments are consecutive from segment 1, so one cursor per step walks them.
+@kernel(nogil=True)
+def assemble(p0, p1, x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas,
+             alives, clips, prefix_ok):  # pragma: no cover - compiled
+    """``trace.assemble`` for photons ``p0 .. p1 - 1``: scatter the step records into the
+    photon-major ``PhotonPaths`` arrays, recomputing each vertex (``advance``) and weight
+    (``scattered_weight``) as the reference computed them. Each step's records are in photon
+    order and a photon's segments are consecutive from segment 1, so one cursor per step
+    (found by binary search for ``p0``) walks them. Photon ranges write disjoint rows: the
+    driver runs ranges on several threads (the GIL released).
 
     Parameters
     ----------
+    p0, p1 : int
+        The photons to write.
     x0, beta0 : (N, 3) float
         Light points, emitted weights (W).
     q : (D,) float
@@ -215,11 +230,13 @@ def assemble(x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas
         Step records; step ``s`` holds rows ``rec_off[s] .. rec_off[s + 1] - 1``.
     rec_off : (D + 1,) int64
     xs, ws, ts, betas, alives, clips, prefix_ok
-        Outputs, shapes as in ``PhotonPaths`` (written entirely).
+        Outputs, shapes as in ``PhotonPaths`` (rows ``p0 .. p1 - 1`` written entirely).
     """
-    n, d = xs.shape[0], ts.shape[1]
-    cur = rec_off[:d].copy()
-    for p in range(n):
+    d = ts.shape[1]
+    cur = np.empty(d, np.int64)
+    for s in range(d):
+        cur[s] = rec_off[s] + np.searchsorted(rec_idx[rec_off[s]:rec_off[s + 1]], p0)
+    for p in range(p0, p1):
         v = (x0[p, 0], x0[p, 1], x0[p, 2])
         xs[p, 0, 0], xs[p, 0, 1], xs[p, 0, 2] = v
         bp = (beta0[p, 0], beta0[p, 1], beta0[p, 2])
@@ -246,7 +263,7 @@ def assemble(x0, beta0, q, albedo, oks, rec_idx, rec, rec_off, xs, ws, ts, betas
             alives[p, s] = run
             xs[p, s + 1, 0], xs[p, s + 1, 1], xs[p, s + 1, 2] = v
     for s in range(d + 1):  # vertex-major reads: contiguous (photon-major: 1.4 ms more)
-        for p in range(n):
+        for p in range(p0, p1):
             prefix_ok[p, s] = oks[s, p]
 
 
@@ -265,6 +282,10 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         Segments to trace at most.
     """
     med = scene.medium
+    # Threads for the elementwise steps and assemble (each element or photon written from its
+    # own inputs; the depth kernel's ranges are closed up in order: the arrays do not depend
+    # on the count).
+    threads = thread_count()
     box = buffers.constants(_box, med)
     rows, test_all = buffers.constants(shadow.table, blockers)
     ws = buffers.workspace(n, depth)
@@ -283,9 +304,10 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         nr = (3 if j > 1 else 1) * m
         rj = rng.random(out=r[:nr])
         lg = rj[nr - m :]
-        np.log1p(np.negative(lg, out=lg), out=lg)
+        in_pieces(lambda a, b, lg=lg: np.log1p(np.negative(lg[a:b], out=lg[a:b]), out=lg[a:b]),
+                  m, threads, emission.ELEMENTWISE_MIN)
         if j > 1:
-            cphi, sphi = emission.azimuth(rj[m : 2 * m], ws.sin[:m])
+            cphi, sphi = emission.azimuth(rj[m : 2 * m], ws.sin[:m], threads)
         else:
             cphi = sphi = empty
         # Then segment j + 1's roulette variates (the reference draws them next).
@@ -296,10 +318,12 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         ws.records(off + m)
         ok = oks[j]
         ok[:n] = False
-        k, nn = step(m, j > 1, med.phase.g, med.sigma_t, idx, x, w, rj[:m], cphi, sphi, lg,
-                     box, oks[j - 1], ok, select, oks[max(j + 1 - ref.LOOKBACK, 0)], u_next,
-                     q_next, ws.rec_idx, ws.rec, off, ws.near_photon, ws.near_a, ws.near_b,
-                     ws.near_inside, rows, test_all)
+        args = (j > 1, med.phase.g, med.sigma_t, idx, x, w, rj[:m], cphi, sphi, lg, box,
+                oks[j - 1], ok, select, oks[max(j + 1 - ref.LOOKBACK, 0)], u_next, q_next,
+                ws.rec_idx, ws.rec, off, ws.near_photon, ws.near_a, ws.near_b,
+                ws.near_inside, rows, test_all)
+        k, nn = _steps(m, threads, args, (idx, x, w),
+                       (ws.near_photon, ws.near_a, ws.near_b, ws.near_inside))
         if nn and shadow.shade(nn, ws.near_a, ws.near_b, ws.near_inside, rows, test_all, ok,
                                ws.near_photon, ws.verdict):
             shadow.resolve(ws.near_photon[:nn], ws.near_a[:nn], ws.near_b[:nn],
@@ -314,10 +338,50 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         ("x", (n, d + 1, 3), np.float64), ("w", (n, d, 3), np.float64), ("t", (n, d), np.float64),
         ("beta", (n, d, 3), np.float64), ("alive", (n, d), np.bool_),
         ("clip", (n, d, 2), np.float64), ("prefix_ok", (n, d + 1), np.bool_)])
-    assemble(e["x0"], e["beta"], np.array(qs[:d]), med.albedo, oks, ws.rec_idx, ws.rec,
-             np.array(rec_off, dtype=np.int64), p["x"], p["w"], p["t"], p["beta"],
-             p["alive"], p["clip"], p["prefix_ok"])
+    args = (e["x0"], e["beta"], np.array(qs[:d]), med.albedo, oks, ws.rec_idx, ws.rec,
+            np.array(rec_off, dtype=np.int64), p["x"], p["w"], p["t"], p["beta"], p["alive"],
+            p["clip"], p["prefix_ok"])
+    # Memory-bound (~50 MB written per 32768 photons): two threads write faster than one.
+    in_pieces(lambda a, b: assemble(a, b, *args), n, threads, ASSEMBLE_MIN)
     return ref.PhotonPaths(n_emitted=n, **{k: e[k] for k in out}, **p)
+
+
+def _steps(m: int, threads: int, args: tuple, state: tuple, near: tuple) -> tuple[int, int]:
+    """:func:`step` over state rows ``0 .. m - 1``, in ranges on ``threads`` threads, the
+    ranges' selected rows (``state``) and near segments (``near``) then closed up in range
+    order: the rows and their order are those of one call over all rows.
+
+    Returns
+    -------
+    (k, nn) : the selected photons and the near segments, rows ``0 ..`` of each.
+    """
+    if threads <= 1 or m < threads * STEP_MIN:
+        return step(0, m, *args)
+    n_pieces = threads * PIECES_PER_THREAD
+    cut = [m * i // n_pieces for i in range(n_pieces + 1)]
+    ends = [(0, 0)] * n_pieces
+
+    def piece(j):
+        ends[j] = step(cut[j], cut[j + 1], *args)
+
+    on_threads(piece, n_pieces, threads)
+    k, nn = ends[0]
+    for j in range(1, n_pieces):
+        a, (kj, nj) = cut[j], ends[j]
+        if kj > a:  # numpy copies overlapping slices as if through a buffer
+            for arr in state:
+                arr[k : k + kj - a] = arr[a:kj]
+        if nj > a:
+            for arr in near:
+                arr[nn : nn + nj - a] = arr[a:nj]
+        k, nn = k + kj - a, nn + nj - a
+    return k, nn
+
+
+#: State rows per thread below which :func:`step` runs on one thread.
+STEP_MIN = 4096
+#: Photons per thread below which ``assemble`` runs on one thread.
+ASSEMBLE_MIN = 2048
 
 
 def _box(med) -> np.ndarray:

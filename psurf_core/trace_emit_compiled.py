@@ -11,6 +11,7 @@ import numpy as np
 from . import trace_buffers as buffers
 from . import trace_emit as ref_emit
 from .kernels.jit import kernel, twin
+from .kernels.threads import in_pieces
 from .scene import AreaLight, MeshLight, PointLight
 
 
@@ -195,12 +196,23 @@ def lights(scene) -> tuple:
     return pmf, _cdf(pmf), per
 
 
-def azimuth(r, sin_out=None):
+def azimuth(r, sin_out=None, threads: int = 1):
     """``cos`` and ``sin`` of the azimuth ``2 pi r`` (numpy's), in place of ``r`` and in
-    ``sin_out`` (a new array when omitted)."""
-    np.multiply(r, 2.0 * np.pi, out=r)
-    s = np.sin(r, out=sin_out)
-    return np.cos(r, out=r), s
+    ``sin_out`` (a new array when omitted); on ``threads`` threads (elementwise: the values
+    do not depend on it)."""
+    s = np.empty_like(r) if sin_out is None else sin_out
+
+    def part(a, b):
+        ra = np.multiply(r[a:b], 2.0 * np.pi, out=r[a:b])
+        np.sin(ra, out=s[a:b])
+        np.cos(ra, out=ra)
+
+    in_pieces(part, r.shape[0], threads, ELEMENTWISE_MIN)
+    return r, s
+
+
+#: Elements per thread below which an elementwise step runs on one thread.
+ELEMENTWISE_MIN = 4096
 
 
 #: ``emit``'s arrays: name -> (shape after the photon axis, dtype).

@@ -152,6 +152,40 @@ def test_threads_only_on_cores_other_processes_leave_free(monkeypatch):
     assert load() >= 0.0 and load() >= 0.0
 
 
+def test_pieces_handed_out_from_a_helper_thread_run_there():
+    """A piece that hands out pieces itself (one helper thread: the pool's only one is busy
+    with it) runs them on its own thread instead of waiting for ever; every piece runs once,
+    and in_pieces covers its range exactly."""
+    import threading
+
+    from psurf_core.kernels import threads
+
+    seen, lock = [], threading.Lock()
+
+    def inner(j):
+        with lock:
+            seen.append(("inner", j, threading.current_thread().name))
+
+    def outer(j):
+        threads.on_threads(inner, 3, 2)
+        with lock:
+            seen.append(("outer", j, threading.current_thread().name))
+
+    done = threading.Event()
+    t = threading.Thread(target=lambda: (threads.on_threads(outer, 4, 2), done.set()),
+                         daemon=True)
+    t.start()
+    assert done.wait(60), "nested on_threads did not finish"
+    assert sorted(j for k, j, _ in seen if k == "outer") == [0, 1, 2, 3]
+    assert len([1 for k, _, _ in seen if k == "inner"]) == 12
+    covered = []
+    threads.in_pieces(lambda a, b: covered.extend(range(a, b)), 1001, 2, min_size=10)
+    assert sorted(covered) == list(range(1001))
+    small = []
+    threads.in_pieces(lambda a, b: small.append((a, b)), 15, 2, min_size=10)
+    assert small == [(0, 15)]
+
+
 def test_a_time_budget_warms_the_kernels_up_first_without_changing_the_image(monkeypatch):
     """``render(time_budget=...)`` compiles/loads the kernels before its clock starts (a cold
     numba compile took the whole 1 s budget of an equal-time comparison on CI), through a

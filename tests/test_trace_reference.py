@@ -96,6 +96,25 @@ def test_workspace_reuse(monkeypatch):
     assert trace_buffers._local.ws.n == 1400
 
 
+@pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
+def test_threads_change_nothing(monkeypatch, name):
+    """The depth kernel, the elementwise steps and ``assemble`` cut into pieces on two
+    threads (thresholds lowered so that a small batch is cut) give the reference's bytes and
+    leave the generator in the same state."""
+    sc = dense(name)
+    monkeypatch.setattr(trace_compiled, "thread_count", lambda: 2)
+    monkeypatch.setattr(trace_compiled, "ASSEMBLE_MIN", 16)
+    monkeypatch.setattr(trace_compiled, "STEP_MIN", 16)
+    monkeypatch.setattr(trace_emit_compiled, "ELEMENTWISE_MIN", 16)
+    pieces = []
+    real = trace_compiled.in_pieces
+    monkeypatch.setattr(trace_compiled, "in_pieces",
+                        lambda fn, n, th, lo=1: (pieces.append((n, th, lo)),
+                                                 real(fn, n, th, lo)))
+    _assert_same(name, _both(sc, 3000, 5))
+    assert any(th == 2 and n >= 2 * lo for n, th, lo in pieces), pieces
+
+
 def test_reused_outputs(monkeypatch):
     """The returned arrays live in reused buffers: one is reused once its arrays (and every
     view of them) are dropped, never while any is held."""

@@ -78,6 +78,8 @@ def thread_count() -> int:
     return n
 
 
+#: Name prefix of :func:`on_threads`' helper threads.
+_POOL_NAME = "psurf-pieces"
 #: Helper threads of :func:`on_threads` (started on first use, shared by all callers).
 _HELPERS: dict[int, ThreadPoolExecutor] = {}
 # A forked child has none of the parent's threads: its pools would never run a task.
@@ -89,13 +91,15 @@ def on_threads(fn, n: int, threads: int) -> None:
     """``fn(j)`` for ``j = 0 .. n - 1`` on ``threads`` threads (this one and ``threads - 1``
     helpers), each taking the next ``j`` when free. An exception (Ctrl-C included) stops the
     handing out; the helpers finish the item they hold, then it is re-raised."""
-    if threads <= 1:
+    # On a helper thread (a piece that hands out pieces itself) the pool's only free thread
+    # may be this one: waiting for a queued piece would wait for ever. Run them here.
+    if threads <= 1 or threading.current_thread().name.startswith(_POOL_NAME):
         for j in range(n):
             fn(j)
         return
     pool = _HELPERS.get(threads - 1)
     if pool is None:
-        pool = _HELPERS[threads - 1] = ThreadPoolExecutor(threads - 1, "psurf-planes")
+        pool = _HELPERS[threads - 1] = ThreadPoolExecutor(threads - 1, _POOL_NAME)
     items = iter(range(n))
     lock = threading.Lock()
     stop = []
@@ -117,3 +121,18 @@ def on_threads(fn, n: int, threads: int) -> None:
     finally:
         for f in helpers:
             f.result()
+
+
+def in_pieces(fn, n: int, threads: int, min_size: int = 1) -> None:
+    """``fn(a, b)`` over ``0 .. n - 1`` cut into consecutive ranges ``[a, b)``, run on
+    ``threads`` threads (:func:`on_threads`, ``PIECES_PER_THREAD`` ranges per thread). For
+    work whose result does not depend on the cut (each element written from its own
+    inputs): numpy ufuncs, which release the GIL, and kernels over independent rows. Below
+    ``min_size`` elements per thread it runs ``fn(0, n)`` here (handing out costs ~50 us)."""
+    if threads <= 1 or n < threads * max(min_size, 1):
+        if n:
+            fn(0, n)
+        return
+    k = min(threads * PIECES_PER_THREAD, n)
+    cut = [n * i // k for i in range(k + 1)]
+    on_threads(lambda j: fn(cut[j], cut[j + 1]), k, threads)
