@@ -11,8 +11,12 @@ inspections in another, ``ui.cli.inspector``) and calls its timer (``App.tick``)
 * ``ticks``: every tick (most only poll and find nothing);
 * ``inspection frames``: the ticks that took a new inspection from the inspector process and
   drew the stage again (after a pixel move);
-* ``keys``: the stage steps (``n``), pixel moves and the ``m`` key, each a full redraw; the
-  inspection they ask for is computed in the inspector process, not here.
+* ``keys``: the stage steps (``n``), pixel moves and the ``m`` key (wall and CPU); in the
+  window (``App.defer``) a key draws what it changed at once and the 3D view's first step
+  (its scene, "drawing..."), and the next ticks build the rest of the 3D view;
+  the inspection they ask for is computed in the inspector process, not here;
+* ``3D view steps``: the ticks that added parts of a 3D view or rendered the completed view
+  (after a key or a new inspection).
 
 Both with VTK's default multisampling and with multisampling off: software OpenGL (no GPU,
 EGL/llvmpipe) spends most of a frame on it, and the window turns it off on its first tick
@@ -90,7 +94,9 @@ def _window(args, msaa: bool) -> dict:
         # first tick; this configuration shows what that saves.
         app._gl_checked = True
     ticks, frames, insp, keys = [], [], [], {"n": [], "pixel": [], "m": []}
-    cpu = {"ticks": [], "frames": []}
+    keys_cpu = {k: [] for k in keys}
+    cpu = {"ticks": [], "frames": [], "build": []}
+    build = []  # ticks that added parts of a 3D view or rendered it (App.defer: the window)
     cam = state.scene.camera
 
     def timer():
@@ -116,7 +122,7 @@ def _window(args, msaa: bool) -> dict:
         for f in range(args.frames):
             if f and f % max(args.frames // 8, 1) == 0:  # a key now and then
                 kind = ("n", "pixel", "m")[(f // max(args.frames // 8, 1)) % 3]
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 if kind == "n":
                     app.next()
                 elif kind == "m":
@@ -125,8 +131,11 @@ def _window(args, msaa: bool) -> dict:
                     x = (state.pixel_xy[0] + 7) % cam.width
                     app.set_pixel((x, state.pixel_xy[1]))
                 keys[kind].append(1000.0 * (time.perf_counter() - t0))
+                keys_cpu[kind].append(1000.0 * (time.process_time() - c0))
             n0 = sum(state.prog.passes)
             waiting = state.inspection is None
+            building = (getattr(app, "_job", None) is not None
+                        or bool(getattr(app, "_render_due", False)))
             t0, c0 = time.perf_counter(), time.process_time()
             timer()
             dt = 1000.0 * (time.perf_counter() - t0)
@@ -135,6 +144,9 @@ def _window(args, msaa: bool) -> dict:
             cpu["ticks"].append(dc)
             if waiting and state.inspection is not None:
                 insp.append(dt)
+            elif building:
+                build.append(dt)
+                cpu["build"].append(dc)
             elif sum(state.prog.passes) > n0:
                 frames.append(dt)
                 cpu["frames"].append(dc)
@@ -148,8 +160,9 @@ def _window(args, msaa: bool) -> dict:
         app.close()
         plotter.close()
     return {**_stats(frames), "ticks": _stats(ticks), "inspection_frames": _stats(insp),
+            "build_ticks": _stats(build),
             "cpu_ms": {k: _stats(v) for k, v in cpu.items()},
-            "keys_ms": keys, "passes": passes, "inspected": inspected,
+            "keys_ms": keys, "keys_cpu_ms": keys_cpu, "passes": passes, "inspected": inspected,
             "render_window": window_class,
             "load_average_after": list(os.getloadavg())}
 
@@ -333,12 +346,17 @@ def main(argv=None) -> int:
         if "ticks" in c:
             row("  every timer tick", c["ticks"])
             row("  new inspection", c["inspection_frames"])
+            row("  3D view steps", c["build_ticks"])
             row("  frames, CPU ms", c["cpu_ms"]["frames"])
             row("  ticks, CPU ms", c["cpu_ms"]["ticks"])
-            print("  keys (full redraws): " + "; ".join(
+            row("  3D view steps, CPU ms", c["cpu_ms"]["build"])
+            print("  keys: " + "; ".join(
                 f"{k}: " + ", ".join(f"{v:.0f}ms" for v in vs)
                 for k, vs in c["keys_ms"].items()) + f"  [inspecting {c['inspected']}; "
                 f"{c['render_window']}]")
+            print("  keys, CPU: " + "; ".join(
+                f"{k}: " + ", ".join(f"{v:.0f}ms" for v in vs)
+                for k, vs in c["keys_cpu_ms"].items()))
     print(f"wrote {args.out}")
     return 0
 

@@ -14,17 +14,52 @@ The mixin uses the app's plotter ``p``, state ``s``, ``controls``, ``script``, `
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 
 from psurf_core.inspect import reconstruct_hit
 from psurf_core.render import render_pass
 
-from .compose import CELL_3D, CELL_PANEL, CELL_TITLE, compose_images, compose_panel, software_opengl
+from .compose import (
+    CELL_3D,
+    CELL_PANEL,
+    CELL_RENDER,
+    CELL_TITLE,
+    CELL_VARIANCE,
+    compose_3d_steps,
+    compose_images,
+    compose_panel,
+    compose_steps,
+    run_steps,
+    software_opengl,
+)
 from .script import play_step
 from .window import accept_results
 
+#: A tick runs one step of the 3D view, and another while it began less than this ago (s): a
+#: step is at most a few tens of milliseconds (one technique's primitives meshed and clipped).
+STEP_BUDGET = 0.045
+#: The 3D view, once complete, is rendered in the same tick only if the tick has spent less
+#: than this (s); otherwise in the next one (a render of the Create stage's 3D view is
+#: ~40-60 ms of software OpenGL at 1600x900, benchmarks/ui_frames.py).
+RENDER_ROOM = 0.03
+
 __all__ = ["Ticker"]
+
+
+def _moved(old, new) -> set:
+    """The parts (``_render_parts``' names) whose place differs between two layouts; ``all``
+    when the window's size, the footer or the slider block changed."""
+    if old == new:
+        return set()
+    if old is None or new is None or (old.size, old.footer, old.sliders) != (
+            new.size, new.footer, new.sliders):
+        return {"all"}
+    a, b = old.parts(), new.parts()
+    names = {"title": "title", "view3d": "3d", "panel": "panel", "images": "render",
+             "maps": "variance"}
+    return {mine for part, mine in names.items() if a[part] != b[part]}
 
 
 class Ticker:
@@ -95,6 +130,7 @@ class Ticker:
     def tick(self, _step=None) -> None:
         """The timer: a resize, a script step, a rested parameter change, the inspector's
         answers and the render worker's passes (never waits for any of them)."""
+        t_start = time.perf_counter()
         if not self._gl_checked:  # the window and its GL context exist now
             self._check_gl()
         if not self._shown:
@@ -131,12 +167,14 @@ class Ticker:
             s.acc.add(render_pass(s.scene, s.estimator, s.acc.n, s.seed, s.settings))
             s.message = f"playing: {s.acc.n} passes"
             got = 1
+        if self.defer:
+            self._tick_parts(stage_new, got, t_start)
         # At most one composition or one render per tick. A new stage (an inspection arrived)
         # is composed in this tick, with the passes merged above, and the whole window is
         # rendered in the next: building its actors and rendering it (3D view included) each
         # cost as much as a frame, so they are not added up in one tick. New passes redraw
         # the image panels and the stage text only.
-        if stage_new:
+        elif stage_new:
             self.compose_all()
             self._render_due = True
         elif self._render_due:
@@ -150,8 +188,46 @@ class Ticker:
             if now - self._busy_shown >= 1.0:  # "computing... (N s)" counts up
                 self._busy_shown = now
                 self._frame()
-        if not self._render_due:  # after a new stage's composition and its render
+        if not self._render_due and self._job is None:  # after a stage's composition and render
             self._warm_reconstruct()
+
+    def _tick_parts(self, stage_new: bool, got: int, t_start: float) -> None:
+        """A tick of the window (:attr:`defer`), one costly thing at most: a new stage draws
+        its text and starts its 3D view; else the 3D view's next steps run (one, and more
+        while the tick is younger than :data:`STEP_BUDGET`); else the completed 3D view is
+        rendered (in the tick that finished it if it has room, :data:`RENDER_ROOM`); else
+        merged passes redraw the image panels and the stage text. Passes merged meanwhile
+        wait for a tick without 3D work (a few ticks at most)."""
+        s = self.s
+        self._frame_due = bool(got) or self._frame_due
+        if stage_new:
+            self.redraw(images=self._frame_due)
+            self._frame_due = False
+            return
+        if self._job is not None:
+            with self.held():
+                first = True
+                while self._job is not None and (
+                        first or time.perf_counter() - t_start < STEP_BUDGET):
+                    first = False
+                    try:
+                        next(self._job)
+                    except StopIteration:
+                        self._job = None
+                        self._render_due = True
+            if not self._render_due or time.perf_counter() - t_start >= RENDER_ROOM:
+                return
+        if self._render_due:
+            self._render_due = False
+            self._render_parts({"3d"})
+            return
+        busy = (s.inspector is not None and s.inspector.busy("pixel") is not None
+                and time.monotonic() - self._busy_shown >= 1.0)
+        if busy:  # "computing... (N s)" counts up
+            self._busy_shown = time.monotonic()
+        if self._frame_due or busy:
+            self._frame_due = False
+            self._frame()
 
     def _warm_reconstruct(self) -> None:
         """Load the Reconstruct stage's compiled kernel (``psurf_core.path_record``'s gather:
@@ -175,6 +251,93 @@ class Ticker:
                                             daemon=True)
         self._recon_warm.start()
 
+    @contextlib.contextmanager
+    def held(self):
+        """Rendering held while actors are added (once a window is shown pyvista renders after
+        every added actor; a stage adds dozens)."""
+        held = self.p.suppress_rendering
+        self.p.suppress_rendering = True
+        try:
+            yield
+        finally:
+            self.p.suppress_rendering = held
+
+    def redraw_deferred(self, keep_camera: bool = True, *, view3d: bool = True,
+                        images: bool = True, everything: bool = False) -> None:
+        """``App.redraw`` in the window: compose the footer, the layout, the title, the image
+        panels, the stage panel and (``view3d``) the 3D view's first step now and render
+        what changed or moved; the 3D view's other steps follow in the next ticks.
+        ``images=False``: the image panels show nothing new (a stage step)."""
+        s = self.s
+        lay, title, footer = s.layout, s.title_key, getattr(self.controls, "_key", None)
+        with self.held():
+            self._draw_controls()
+            steps = compose_steps(self.p, s, keep_camera=keep_camera, view3d=view3d)
+            try:
+                next(steps)
+            except StopIteration:
+                steps = None
+            moved = _moved(lay, s.layout)
+            if moved & {"3d", "all"} and not view3d:  # the 3D view moved: composed again too
+                self.p.subplot(*CELL_3D)
+                steps, view3d = compose_3d_steps(self.p, s, keep_camera=keep_camera), True
+                try:
+                    next(steps)
+                except StopIteration:
+                    steps = None
+            if view3d:
+                self._job, self._render_due = steps, False
+            self._place_widgets()
+        parts = {"panel"} | moved
+        if images:
+            parts |= {"render", "variance"}
+        if view3d:
+            parts.add("3d")
+        if s.title_key != title:
+            parts.add("title")
+        if self.controls is not None and self.controls._key != footer:
+            parts.add("footer")
+        self._render_parts(set(self._renderers()) if everything or "all" in moved else parts)
+
+    def settle(self) -> None:
+        """Finish the 3D view's steps at once and render the whole window (a screenshot, the
+        ``s`` key, a script's ``shot``)."""
+        if self._job is not None:
+            with self.held():
+                run_steps(self._job)
+            self._job = None
+        self.p.render()
+        self._render_due = False
+
+    def _renderers(self) -> dict:
+        p = self.p
+        out = {name: p.renderers[p.renderers.loc_to_index(cell)] for name, cell in
+               (("3d", CELL_3D), ("render", CELL_RENDER), ("variance", CELL_VARIANCE),
+                ("panel", CELL_PANEL), ("title", CELL_TITLE))}
+        if self.controls is not None:
+            out["footer"] = self.controls.overlay
+        return out
+
+    def _render_parts(self, parts) -> None:
+        """Render the window drawing only the renderers named in ``parts`` (``3d``,
+        ``render``, ``variance``, ``panel``, ``title``, ``footer``): VTK renders into its own
+        framebuffer, and a renderer that is not drawn leaves its viewport as it was (the
+        layout's parts never overlap; the footer's layer, which also holds the help box over
+        the others, is drawn whenever the help is shown)."""
+        rens = self._renderers()
+        if self.s.show_help:
+            parts = set(parts) | {"footer"}
+        skip = [r for name, r in rens.items() if name not in parts]
+        for ren in skip:
+            ren.SetDraw(False)
+        try:
+            self.p.render()
+        finally:
+            for ren in skip:
+                ren.SetDraw(True)
+        self._stamp()
+        self._record_frame()
+
     def redraw_render(self) -> None:
         """Render the whole window as composed (the second half of a new stage's redraw)."""
         self.p.render()
@@ -197,29 +360,13 @@ class Ticker:
         """Redraw the image panels and the stage panel (the 3D view and its camera stay)."""
         fits = self._compose_frame()
         if not fits:  # the panel's text needs another layout: everything is laid out again
-            self.redraw()
+            self.redraw(view3d=False)  # (the 3D view too if it moved)
             self._record_frame()
             return
         # Only the image panels and the stage text changed: only their renderers are drawn.
         # The 3D view is the costliest part of a frame (tens to hundreds of ms in software
         # OpenGL, measured by benchmarks/ui_frames.py), the footer's and the title's text
-        # actors cost too, so they keep last frame's pixels: VTK renders into its own
-        # framebuffer, and a renderer that is not drawn leaves its viewport as it was (the
-        # layout's parts never overlap). Any other render (camera moves, stage changes,
-        # resizes) draws everything again.
-        p = self.p
-        skip = [p.renderers[p.renderers.loc_to_index(CELL_3D)],
-                p.renderers[p.renderers.loc_to_index(CELL_TITLE)]]
-        if not self.s.panel_changed:
-            skip.append(p.renderers[p.renderers.loc_to_index(CELL_PANEL)])
-        if self.controls is not None and not self.s.show_help:
-            skip.append(self.controls.overlay)  # the help box lies over the other parts
-        for ren in skip:
-            ren.SetDraw(False)
-        try:
-            p.render()
-        finally:
-            for ren in skip:
-                ren.SetDraw(True)
-        self._stamp()
-        self._record_frame()
+        # actors cost too, so they keep last frame's pixels. Any other render (camera moves,
+        # stage changes, resizes) draws everything again.
+        self._render_parts({"render", "variance"} | ({"panel"} if self.s.panel_changed
+                                                     else set()))

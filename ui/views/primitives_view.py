@@ -227,18 +227,36 @@ def create_selection(inspection, n_paths: int, max_prims: int = MAX_PRIMS) -> di
     return sel
 
 
-def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity: float = 0.45,
-                   edges: bool = True, name: str = "prims", legend: bool = True,
-                   legend_loc: str = "lower right", width: float = 3.0,
-                   list_empty: bool = True) -> dict:
+def add_primitives(plotter: pv.Plotter, inspection, selection: dict, **kw) -> dict:
     """Draw the selected primitives of every technique; returns ``technique -> status``.
 
     ``status`` is ``"N drawn"``, ``"N bounds only"`` or ``"none"``; techniques with nothing
-    selected appear in the legend as "none here" when ``list_empty``.
+    selected appear in the legend as "none here" when ``list_empty``. Keywords as
+    :func:`primitive_steps`.
     """
+    steps = primitive_steps(plotter, inspection, selection, **kw)
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            return stop.value
+
+
+def primitive_steps(plotter: pv.Plotter, inspection, selection: dict, *, opacity: float = 0.45,
+                    edges: bool = True, name: str = "prims", legend: bool = True,
+                    legend_loc: str = "lower right", width: float = 3.0,
+                    list_empty: bool = True):
+    """:func:`add_primitives` one technique per step (a generator; it returns the status):
+    meshing and clipping a technique's primitives the first time is the dearest part of a
+    stage's 3D view (the window spreads the steps over its timer ticks,
+    :mod:`ui.views.view3d`). Each step draws into the plotter's current renderer."""
     status = {}
     entries = []
+    drew = False  # a step ends after a technique that had primitives to mesh and draw
     for tname, tech in inspection.techniques.items():
+        if drew:
+            yield
+        drew = False
         meshes, how, count = [], "surface", 0
         for (n2, b), rows in selection.items():
             if n2 != tname or len(rows) == 0:
@@ -251,6 +269,7 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
             if mesh.n_points:
                 meshes.append(mesh)
         col = technique_colour(tname)
+        drew = count > 0
         if count == 0:
             status[tname] = "none"
             if list_empty:
