@@ -97,6 +97,7 @@ def _window(args, msaa: bool) -> dict:
     keys_cpu = {k: [] for k in keys}
     cpu = {"ticks": [], "frames": [], "build": []}
     build = []  # ticks that added parts of a 3D view or rendered it (App.defer: the window)
+    slow, last_key = [], None  # ticks over 100 ms: what they did, the key before them
     cam = state.scene.camera
 
     def timer():
@@ -132,6 +133,7 @@ def _window(args, msaa: bool) -> dict:
                     app.set_pixel((x, state.pixel_xy[1]))
                 keys[kind].append(1000.0 * (time.perf_counter() - t0))
                 keys_cpu[kind].append(1000.0 * (time.process_time() - c0))
+                last_key = (f, kind)
             n0 = sum(state.prog.passes)
             waiting = state.inspection is None
             building = (getattr(app, "_job", None) is not None
@@ -142,6 +144,12 @@ def _window(args, msaa: bool) -> dict:
             dc = 1000.0 * (time.process_time() - c0)  # this process: UI + Mesa's threads
             ticks.append(dt)
             cpu["ticks"].append(dc)
+            if dt > 100.0 or dc > 100.0:
+                slow.append({"tick": f, "wall_ms": round(dt, 1), "cpu_ms": round(dc, 1),
+                             "passes": sum(state.prog.passes) - n0, "building": building,
+                             "new_inspection": waiting and state.inspection is not None,
+                             "mode": state.mode, "stage": state.stage,
+                             "after_key": last_key})
             if waiting and state.inspection is not None:
                 insp.append(dt)
             elif building:
@@ -160,7 +168,7 @@ def _window(args, msaa: bool) -> dict:
         app.close()
         plotter.close()
     return {**_stats(frames), "ticks": _stats(ticks), "inspection_frames": _stats(insp),
-            "build_ticks": _stats(build),
+            "build_ticks": _stats(build), "slow_ticks": slow,
             "cpu_ms": {k: _stats(v) for k, v in cpu.items()},
             "keys_ms": keys, "keys_cpu_ms": keys_cpu, "passes": passes, "inspected": inspected,
             "render_window": window_class,

@@ -21,6 +21,7 @@ import time
 from psurf_core.inspect import reconstruct_hit
 from psurf_core.render import render_pass
 
+from . import baked_light
 from .compose import (
     CELL_3D,
     CELL_PANEL,
@@ -114,6 +115,9 @@ class Ticker:
             # without it. Screenshots keep it: they are figures, not frames. (Changed after
             # the first render, the next render goes without it; the picture shown stays.)
             self.p.ren_win.SetMultiSamples(0)
+            # Translucent primitives lit on the CPU, once per view: the same picture for the
+            # view they are drawn for, half the render of the Create stage's 3D view.
+            baked_light.enable(self.p)
 
     def _watch_first_frame(self) -> None:
         """Stamp ``window`` (:meth:`_stamp`) when the window has rendered its first frame."""

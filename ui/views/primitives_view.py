@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import baked_light
 from ._vtk import pv
 from .palette import technique_colour, text_on
 from .scene_view import (
@@ -282,9 +283,17 @@ def primitive_steps(plotter: pv.Plotter, inspection, selection: dict, *, opacity
                 plotter.add_mesh(merged, color=col, line_width=px(width),
                                  name=f"{name}-{tname}:mesh")
             else:
-                plotter.add_mesh(merged, color=col, opacity=opacity, show_edges=False,
-                                 smooth_shading=False, name=f"{name}-{tname}:mesh",
-                                 culling=False)
+                if baked_light.enabled(plotter):  # the window in software OpenGL
+                    merged.cell_data["shade"] = baked_light.shaded_cells(merged, col,
+                                                                         plotter.renderer)
+                    plotter.add_mesh(merged, scalars="shade", rgb=True, lighting=False,
+                                     opacity=opacity, show_edges=False,
+                                     show_scalar_bar=False, name=f"{name}-{tname}:mesh",
+                                     culling=False)
+                else:
+                    plotter.add_mesh(merged, color=col, opacity=opacity, show_edges=False,
+                                     smooth_shading=False, name=f"{name}-{tname}:mesh",
+                                     culling=False)
                 if edges:
                     fe = merged.extract_feature_edges(boundary_edges=True, feature_edges=False,
                                                       manifold_edges=False,
