@@ -397,3 +397,33 @@ p.close()
         (r.stdout, r.stderr[-2000:])
     assert lines[2].startswith("window: time window "), (r.stdout, r.stderr[-2000:])
     assert lines[3] == "after True", (r.stdout, r.stderr[-2000:])
+
+
+@pytest.mark.parametrize("stage", ["create", "intersect"])
+def test_baked_light_draws_the_picture_the_shader_draws(stage):
+    """The window in software OpenGL shades the translucent primitives on the CPU
+    (``ui.views.baked_light``): for the view they were made for, the same picture as VTK's
+    lighting (within 2/255 per channel), with the primitives drawn unlit."""
+    from ui.views import baked_light
+    from ui.views.window import attach_progressive, build_state, compose, make_plotter
+
+    state = build_state(POINT, "mis:plane-t1t2+planes", seed=3, pixel_xy=(30, 20),
+                        photons=100, passes=1, stage=stage)
+    attach_progressive(state, workers=0, breakdown=False)
+    state.prog.run(passes=1)
+    shots = []
+    try:
+        for on in (False, True):
+            p = make_plotter((800, 450), off_screen=True)
+            baked_light.enable(p, on)
+            compose(p, state)
+            meshes = [a for n, a in p.renderers[0].actors.items()
+                      if n.startswith(("prims-", "context-", "hitprims-")) and n.endswith(":mesh")]
+            assert meshes and all(a.GetProperty().GetLighting() != on for a in meshes)
+            shots.append(np.asarray(p.screenshot(None, return_img=True), dtype=int))
+            p.close()
+    finally:
+        state.prog.close()
+        state.inspector.close()
+    diff = np.abs(shots[0] - shots[1])
+    assert diff.max() <= 2, (diff.max(), (diff > 2).sum())
