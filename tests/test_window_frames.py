@@ -427,3 +427,41 @@ def test_baked_light_draws_the_picture_the_shader_draws(stage):
         state.inspector.close()
     diff = np.abs(shots[0] - shots[1])
     assert diff.max() <= 2, (diff.max(), (diff > 2).sum())
+
+
+def test_baked_light_is_made_again_for_a_turned_view():
+    """Turning the 3D view (the window makes the shading again when the turn ends): the
+    colours are those of VTK's lighting for the new view, and nothing changes for the same
+    view."""
+    from ui.views import baked_light
+    from ui.views.window import attach_progressive, build_state, compose, make_plotter
+
+    state = build_state(POINT, "mis:plane-t1t2+planes", seed=3, pixel_xy=(30, 20),
+                        photons=100, passes=1, stage="create")
+    attach_progressive(state, workers=0, breakdown=False)
+    state.prog.run(passes=1)
+    p = make_plotter((800, 450), off_screen=True)
+    try:
+        baked_light.enable(p)
+        compose(p, state)
+        ren = p.renderers[0]
+        assert baked_light.relight(ren) == 0  # made for this view already
+        ren.GetActiveCamera().Azimuth(40.0)
+        ren.ResetCameraClippingRange()
+        assert baked_light.relight(ren) > 0
+        p.ren_win.Render()  # (pyvista's off-screen screenshot may return the last picture)
+        turned = np.asarray(p.screenshot(None, return_img=True), dtype=int)
+        for name, actor in ren.actors.items():  # the shader's lighting for the same view
+            if name.endswith(":mesh") and actor.GetMapper().GetInput().GetCellData() \
+                    .GetArray(baked_light.SHADE) is not None:
+                actor.GetMapper().ScalarVisibilityOff()
+                actor.GetProperty().LightingOn()
+                actor.GetProperty().SetColor(*pv.wrap(actor.GetMapper().GetInput())
+                                             .field_data[baked_light.BASE])
+        p.ren_win.Render()
+        lit = np.asarray(p.screenshot(None, return_img=True), dtype=int)
+    finally:
+        p.close()
+        state.prog.close()
+        state.inspector.close()
+    assert np.abs(turned - lit).max() <= 2

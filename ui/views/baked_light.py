@@ -8,8 +8,8 @@ five times. Flat shading (what the primitives use: one normal per cell) is a col
 so it can be computed here once per view, exactly as VTK's shader does it (diffuse only:
 pyvista's surfaces have no ambient or specular term; two-sided: a cell facing away is lit on
 its other side), and drawn unlit. The picture is the same for the camera the colours were
-made for (:func:`shaded_cells`); when the user turns the view the colours stay as they were
-made (the next stage, or any redraw, makes them again).
+made for (:func:`shaded_cells`); while the user turns the view they stay as they were made,
+and when the turn ends the window makes them again for the new view (:func:`relight`).
 
 The window switches it on (:func:`enable`) only when it finds software OpenGL; screenshots
 and GPU windows light the surfaces in the shader.
@@ -21,7 +21,19 @@ import numpy as np
 
 from ._vtk import pv
 
-__all__ = ["enable", "enabled", "shaded_cells"]
+__all__ = ["enable", "enabled", "relight", "shade", "shaded_cells"]
+
+#: Cell array of the shaded colours; field arrays of the colour and the view they were made
+#: from.
+SHADE, BASE, VIEW = "shade", "shade_base", "shade_view"
+
+
+def _view(renderer) -> np.ndarray:
+    """What the shading depends on: the camera's direction and view up (the lights are
+    camera lights, directional)."""
+    cam = renderer.GetActiveCamera()
+    d = np.array(cam.GetFocalPoint()) - np.array(cam.GetPosition())
+    return np.concatenate([d / max(np.linalg.norm(d), 1e-300), np.array(cam.GetViewUp())])
 
 #: The attribute of a plotter that switches the baked shading on.
 _FLAG = "_psurf_baked_light"
@@ -82,3 +94,40 @@ def shaded_cells(mesh: pv.PolyData, colour, renderer) -> np.ndarray:
     for to_light, rgb in _light_directions(renderer):
         light += np.maximum(normals @ to_light, 0.0)[:, None] * rgb[None]
     return np.clip(np.rint(255.0 * base[None] * light), 0, 255).astype(np.uint8)
+
+
+def shade(mesh: pv.PolyData, colour, renderer) -> pv.PolyData:
+    """``mesh`` with its cells shaded for ``renderer`` (the cell array :data:`SHADE`, drawn
+    with ``scalars=SHADE, rgb=True, lighting=False``); ``colour`` is kept with it."""
+    mesh.cell_data[SHADE] = shaded_cells(mesh, colour, renderer)
+    mesh.field_data[BASE] = np.array(pv.Color(colour).float_rgb)
+    mesh.field_data[VIEW] = _view(renderer)
+    return mesh
+
+
+def relight(renderer) -> int:
+    """Shade every baked mesh of ``renderer`` again for its camera as it is now (after the
+    user turned the view) if it was made for another view; returns how many were changed
+    (render to show them). The colours are written into the arrays the mappers draw."""
+    n, view = 0, _view(renderer)
+    for actor in list(renderer.actors.values()):
+        mapper = actor.GetMapper() if hasattr(actor, "GetMapper") else None
+        data = mapper.GetInput() if hasattr(mapper, "GetInput") else None
+        if data is None or not data.GetNumberOfPolys():
+            continue
+        shade_arr = data.GetCellData().GetArray(SHADE)
+        base_arr = data.GetFieldData().GetArray(BASE)
+        view_arr = data.GetFieldData().GetArray(VIEW)
+        if shade_arr is None or base_arr is None or view_arr is None:
+            continue
+        made_for = pv.convert_array(view_arr)  # views of VTK's buffers: written in place
+        if np.allclose(made_for, view, atol=1e-6):
+            continue
+        colours = pv.convert_array(shade_arr)
+        colours[...] = shaded_cells(pv.wrap(data), tuple(pv.convert_array(base_arr)),
+                                    renderer).reshape(colours.shape)
+        made_for[...] = view
+        shade_arr.Modified()
+        data.Modified()
+        n += 1
+    return n

@@ -1,7 +1,8 @@
 """What each part of the window shows for a :class:`ui.views.window.ViewState`: the layout
 applied to the renderers, the title and caption, the 3D view of the stage, the stage panel and
 the image panels (:func:`compose` draws them all; the window's timer redraws only the image
-panels and the stage panel, :func:`compose_images` and :func:`compose_panel`).
+panels and the stage panel, :func:`compose_images` and :func:`compose_panel`, and builds the
+3D view over several ticks, :func:`compose_steps` and :mod:`ui.views.view3d`).
 
 Composition only: nothing here handles an event or waits for a computation (the state, a
 :class:`ui.views.window.ViewState`, holds what the background processes computed), so the

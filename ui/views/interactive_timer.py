@@ -3,13 +3,22 @@
 step, apply a rested parameter change, and draw only what changed, once.
 
 Every 200 ms (``App.TICK_MS``) the timer calls :meth:`Ticker.tick` and nothing else (not
-pyvista's ``add_timer_event``, which rendered the whole window after every callback). A new
-inspection redraws the window once (``App.redraw``); merged passes redraw the image panels and
-the stage text, rendering only their renderers (:meth:`Ticker._frame`); a tick with nothing
-new draws nothing. ``benchmarks/ui_frames.py`` times it.
+pyvista's ``add_timer_event``, which rendered the whole window after every callback). Merged
+passes redraw the image panels and the stage text, rendering only their renderers
+(:meth:`Ticker._frame`); a tick with nothing new draws nothing.
+
+In the window (``App.defer``) no tick and no key does more than one costly thing (each about
+a frame, ~30-70 ms of the UI thread in software OpenGL at 1600x900): a key or a new
+inspection composes and renders what it changed (title, stage text, image panels, the 3D
+view's first step: its scene and "drawing..."); the following ticks add the 3D view's parts
+(:func:`ui.views.view3d.compose_3d_steps`, while a tick is younger than
+:data:`STEP_BUDGET`), then render it alone; passes merged meanwhile wait for the next free
+tick. Off-screen (tests) a new inspection is composed in one tick and rendered in the next.
+``benchmarks/ui_frames.py`` times it.
 
 The mixin uses the app's plotter ``p``, state ``s``, ``controls``, ``script``, ``pending``,
-``clock``, ``apply_params``, ``redraw`` and ``_record_frame``.
+``clock``, ``defer``, ``apply_params``, ``redraw``, ``_draw_controls``, ``_place_widgets``
+and ``_record_frame``.
 """
 
 from __future__ import annotations
@@ -232,6 +241,8 @@ class Ticker:
         if self._frame_due or busy:
             self._frame_due = False
             self._frame()
+        elif self._turned():
+            self._render_parts({"3d"})
 
     def _warm_reconstruct(self) -> None:
         """Load the Reconstruct stage's compiled kernel (``psurf_core.path_record``'s gather:
@@ -302,6 +313,17 @@ class Ticker:
         if self.controls is not None and self.controls._key != footer:
             parts.add("footer")
         self._render_parts(set(self._renderers()) if everything or "all" in moved else parts)
+
+    def _turned(self) -> bool:
+        """Whether the user turned the 3D view (and let go) since its baked primitives were
+        shaded; if so they are shaded for the new view (:func:`ui.views.baked_light.relight`)
+        and the view must be drawn again."""
+        if not baked_light.enabled(self.p) or self.p.iren is None:
+            return False
+        style = self.p.iren.interactor.GetInteractorStyle()
+        if style is not None and style.GetState() != 0:  # a button still held: still turning
+            return False
+        return baked_light.relight(self._renderers()["3d"]) > 0
 
     def settle(self) -> None:
         """Finish the 3D view's steps at once and render the whole window (a screenshot, the

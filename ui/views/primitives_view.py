@@ -283,24 +283,23 @@ def primitive_steps(plotter: pv.Plotter, inspection, selection: dict, *, opacity
                 plotter.add_mesh(merged, color=col, line_width=px(width),
                                  name=f"{name}-{tname}:mesh")
             else:
+                fe = (merged.extract_feature_edges(boundary_edges=True, feature_edges=False,
+                                                   manifold_edges=False,
+                                                   non_manifold_edges=False)
+                      if edges else None)
                 if baked_light.enabled(plotter):  # the window in software OpenGL
-                    merged.cell_data["shade"] = baked_light.shaded_cells(merged, col,
-                                                                         plotter.renderer)
-                    plotter.add_mesh(merged, scalars="shade", rgb=True, lighting=False,
-                                     opacity=opacity, show_edges=False,
+                    baked_light.shade(merged, col, plotter.renderer)
+                    plotter.add_mesh(merged, scalars=baked_light.SHADE, rgb=True,
+                                     lighting=False, opacity=opacity, show_edges=False,
                                      show_scalar_bar=False, name=f"{name}-{tname}:mesh",
                                      culling=False)
                 else:
                     plotter.add_mesh(merged, color=col, opacity=opacity, show_edges=False,
                                      smooth_shading=False, name=f"{name}-{tname}:mesh",
                                      culling=False)
-                if edges:
-                    fe = merged.extract_feature_edges(boundary_edges=True, feature_edges=False,
-                                                      manifold_edges=False,
-                                                      non_manifold_edges=False)
-                    if fe.n_points:
-                        plotter.add_mesh(fe, color=col, line_width=px(width),
-                                         name=f"{name}-{tname}:edges")
+                if fe is not None and fe.n_points:
+                    plotter.add_mesh(fe, color=col, line_width=px(width),
+                                     name=f"{name}-{tname}:edges")
         tag = "bounds only (no drawer)" if how == "bounds" else "drawn"
         status[tname] = f"{count} {tag}"
         entries.append([f"{tech.family}: {tname} ({count}{', bounds' if how == 'bounds' else ''})",
