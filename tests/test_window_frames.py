@@ -465,3 +465,27 @@ def test_baked_light_is_made_again_for_a_turned_view():
         state.prog.close()
         state.inspector.close()
     assert np.abs(turned - lit).max() <= 2
+
+
+def test_in_the_window_a_turned_view_is_shaded_again_by_the_next_tick(app):
+    """The window with baked shading: after the user turned the 3D view, the next tick shades
+    the primitives for the new view and draws the 3D view alone; then nothing more."""
+    from ui.views import baked_light
+
+    s = app.s
+    s.prog.pause()
+    app.defer = True
+    baked_light.enable(app.p)
+    app.next()  # create: translucent primitives
+    _settle_by_ticks(app)
+    app.tick()  # (the view as composed: nothing to shade again)
+    count = _drawn(app)
+    app.tick()
+    assert sum(count.values()) == 0, count
+    ren = app.p.renderers[0]
+    ren.GetActiveCamera().Azimuth(30.0)  # what a drag with the mouse does
+    app.tick()
+    assert count["3d"] == 1 and count["render"] == count["panel"] == 0, count
+    assert baked_light.relight(ren) == 0  # shaded for this view already
+    app.tick()
+    assert count["3d"] == 1

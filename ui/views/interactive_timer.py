@@ -323,7 +323,12 @@ class Ticker:
         style = self.p.iren.interactor.GetInteractorStyle()
         if style is not None and style.GetState() != 0:  # a button still held: still turning
             return False
-        return baked_light.relight(self._renderers()["3d"]) > 0
+        ren = self._renderers()["3d"]
+        moved = ren.GetActiveCamera().GetMTime()
+        if moved == getattr(self, "_camera_seen", None):  # (listing the actors costs ~1 ms)
+            return False
+        self._camera_seen = moved
+        return baked_light.relight(ren) > 0
 
     def settle(self) -> None:
         """Finish the 3D view's steps at once and render the whole window (a screenshot, the
