@@ -54,6 +54,7 @@ before and after it; medians per checkout).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import platform
@@ -109,6 +110,15 @@ def _window(args, msaa: bool) -> dict:
         else:
             app.tick()
 
+    gc_ms, gc_t0 = [], [0.0]
+
+    def gc_watch(phase, info):  # the garbage collector's pauses (the UI thread's too)
+        if phase == "start":
+            gc_t0[0] = time.perf_counter()
+        elif info.get("generation") == 2:
+            gc_ms.append(1000.0 * (time.perf_counter() - gc_t0[0]))
+
+    gc.callbacks.append(gc_watch)
     try:
         app.bind()
         app.redraw(keep_camera=False)
@@ -165,10 +175,12 @@ def _window(args, msaa: bool) -> dict:
         # ("bad X server connection", seen under heavy load): say which one was measured.
         window_class = type(plotter.ren_win).__name__
     finally:
+        gc.callbacks.remove(gc_watch)
         app.close()
         plotter.close()
     return {**_stats(frames), "ticks": _stats(ticks), "inspection_frames": _stats(insp),
             "build_ticks": _stats(build), "slow_ticks": slow,
+            "gc_full_ms": [round(v, 1) for v in gc_ms],
             "cpu_ms": {k: _stats(v) for k, v in cpu.items()},
             "keys_ms": keys, "keys_cpu_ms": keys_cpu, "passes": passes, "inspected": inspected,
             "render_window": window_class,
@@ -365,6 +377,11 @@ def main(argv=None) -> int:
             print("  keys, CPU: " + "; ".join(
                 f"{k}: " + ", ".join(f"{v:.0f}ms" for v in vs)
                 for k, vs in c["keys_cpu_ms"].items()))
+            g = c["gc_full_ms"]
+            print(f"  full garbage collections: {len(g)}, longest "
+                  f"{max(g, default=0.0):.0f}ms; ticks over 100 ms: " + ", ".join(
+                      f"#{t['tick']} {t['wall_ms']:.0f}/{t['cpu_ms']:.0f}ms" for t in
+                      c["slow_ticks"]))
     print(f"wrote {args.out}")
     return 0
 

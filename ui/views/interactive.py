@@ -114,6 +114,7 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
         self.defer = not plotter.off_screen if defer is None else bool(defer)
         self._job = None  # the 3D view's remaining steps (ui.views.view3d)
         self._frame_due = False  # passes merged, the panels not drawn yet (3D work first)
+        self._parts_due = None  # parts composed but not rendered yet (no room in their tick)
         if not state.specs:
             state.specs = (state.estimator.spec,)
         if state.base_scene is None:

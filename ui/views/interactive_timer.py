@@ -24,6 +24,7 @@ and ``_record_frame``.
 from __future__ import annotations
 
 import contextlib
+import gc
 import threading
 import time
 
@@ -54,6 +55,10 @@ STEP_BUDGET = 0.045
 #: than this (s); otherwise in the next one (a render of the Create stage's 3D view is
 #: ~40-60 ms of software OpenGL at 1600x900, benchmarks/ui_frames.py).
 RENDER_ROOM = 0.03
+#: Merged passes are composed into the panels only in a tick that has spent less than this
+#: (s; taking a pass in, unpickling a breakdown, took up to ~20 ms), and rendered in the same
+#: tick only if it has spent less than ``PANELS_ROOM`` (a render of the panels: ~35-40 ms).
+FRAME_ROOM, PANELS_ROOM = 0.03, 0.05
 
 __all__ = ["Ticker"]
 
@@ -146,6 +151,12 @@ class Ticker:
         t_start = time.perf_counter()
         if not self._gl_checked:  # the window and its GL context exist now
             self._check_gl()
+        if not getattr(self, "_frozen", False):
+            # Everything alive by the first tick (modules, VTK, pyvista, the scene) lives as
+            # long as the window: left out of the garbage collector's full passes, which
+            # took 85 ms of a tick (benchmarks/ui_frames.py, gc_full_ms) scanning it all.
+            gc.freeze()
+            self._frozen = True
         if not self._shown:
             self._shown = True
             self._stamp()
@@ -210,12 +221,19 @@ class Ticker:
         while the tick is younger than :data:`STEP_BUDGET`); else the completed 3D view is
         rendered (in the tick that finished it if it has room, :data:`RENDER_ROOM`); else
         merged passes redraw the image panels and the stage text. Passes merged meanwhile
-        wait for a tick without 3D work (a few ticks at most)."""
+        wait for a tick without 3D work (a few ticks at most). The panels are composed only
+        in a young tick (:data:`FRAME_ROOM`: taking the passes in can cost tens of ms) and
+        rendered in the same tick if there is room (:data:`PANELS_ROOM`), else in the next
+        (a new panel mode's first breakdown lays out a dozen tiles anew)."""
         s = self.s
         self._frame_due = bool(got) or self._frame_due
         if stage_new:
             self.redraw(images=self._frame_due)
-            self._frame_due = False
+            self._frame_due = self._parts_due = False
+            return
+        if self._parts_due:  # composed in a tick that had no room left to render them
+            parts, self._parts_due = self._parts_due, None
+            self._render_parts(parts)
             return
         if self._job is not None:
             with self.held():
@@ -238,10 +256,17 @@ class Ticker:
                 and time.monotonic() - self._busy_shown >= 1.0)
         if busy:  # "computing... (N s)" counts up
             self._busy_shown = time.monotonic()
-        if self._frame_due or busy:
+        if (self._frame_due or busy) and time.perf_counter() - t_start < FRAME_ROOM:
             self._frame_due = False
-            self._frame()
-        elif self._turned():
+            if not self._compose_frame():  # the panel's text needs another layout
+                self.redraw(view3d=False)
+                return
+            parts = {"render", "variance"} | ({"panel"} if s.panel_changed else set())
+            if time.perf_counter() - t_start < PANELS_ROOM:
+                self._render_parts(parts)
+            else:
+                self._parts_due = parts
+        elif not self._frame_due and self._turned():
             self._render_parts({"3d"})
 
     def _warm_reconstruct(self) -> None:
@@ -306,6 +331,7 @@ class Ticker:
         parts = {"panel"} | moved
         if images:
             parts |= {"render", "variance"}
+            self._parts_due = None
         if view3d:
             parts.add("3d")
         if s.title_key != title:
