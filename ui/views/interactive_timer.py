@@ -151,10 +151,11 @@ class Ticker:
         t_start = time.perf_counter()
         if not self._gl_checked:  # the window and its GL context exist now
             self._check_gl()
-        if not getattr(self, "_frozen", False):
-            # Everything alive by the first tick (modules, VTK, pyvista, the scene) lives as
-            # long as the window: left out of the garbage collector's full passes, which
-            # took 85 ms of a tick (benchmarks/ui_frames.py, gc_full_ms) scanning it all.
+        if self.defer and not getattr(self, "_frozen", False):
+            # Everything alive by the window's first tick (modules, VTK, pyvista, the scene)
+            # lives as long as the window: left out of the garbage collector's full passes,
+            # which took 85 ms of a tick (benchmarks/ui_frames.py, gc_full_ms) scanning it
+            # all. (Only in the window: a test process goes on after its windows.)
             gc.freeze()
             self._frozen = True
         if not self._shown:
