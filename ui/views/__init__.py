@@ -24,6 +24,7 @@ module                     owns
 :mod:`.footer`             the window's chips, buttons, sliders and help (an overlay)
 :mod:`.interactive`        the on-screen window: keys, stages, rendering
 :mod:`.interactive_timer`  the window's timer: what a tick takes in and draws
+:mod:`.interactive_draw`   a change drawn in parts: only the renderers it touched
 :mod:`.interactive_params` what clicks, estimator chips, members, sliders change; recording
 :mod:`.script`             scripted steps for the window (tests under Xvfb)
 :mod:`.lecture`            lecture mode in the window

@@ -22,6 +22,7 @@ from psurf_core.render import render
 from . import controls, primitives_view
 from ._vtk import pv
 from .footer import Controls
+from .interactive_draw import Drawer
 from .interactive_params import EstimatorControls, MediumControls, Pointer, Recorder
 from .interactive_timer import Ticker
 from .layout import next_focus
@@ -93,7 +94,7 @@ def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: in
         app.close()
 
 
-class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
+class App(Ticker, Drawer, Pointer, EstimatorControls, MediumControls, Recorder):
     """Key, mouse, widget and timer bindings of the interactive window (what a click picks, the
     inspected estimator and its members, the medium / photon controls and the recorder are
     :mod:`ui.views.interactive_params`'s).
