@@ -11,8 +11,12 @@ inspections in another, ``ui.cli.inspector``) and calls its timer (``App.tick``)
 * ``ticks``: every tick (most only poll and find nothing);
 * ``inspection frames``: the ticks that took a new inspection from the inspector process and
   drew the stage again (after a pixel move);
-* ``keys``: the stage steps (``n``), pixel moves and the ``m`` key, each a full redraw; the
-  inspection they ask for is computed in the inspector process, not here.
+* ``keys``: the stage steps (``n``), pixel moves and the ``m`` key (wall and CPU); in the
+  window (``App.defer``) a key draws what it changed at once and the 3D view's first step
+  (its scene, "drawing..."), and the next ticks build the rest of the 3D view;
+  the inspection they ask for is computed in the inspector process, not here;
+* ``3D view steps``: the ticks that added parts of a 3D view or rendered the completed view
+  (after a key or a new inspection).
 
 Both with VTK's default multisampling and with multisampling off: software OpenGL (no GPU,
 EGL/llvmpipe) spends most of a frame on it, and the window turns it off on its first tick
@@ -50,6 +54,7 @@ before and after it; medians per checkout).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import platform
@@ -90,7 +95,10 @@ def _window(args, msaa: bool) -> dict:
         # first tick; this configuration shows what that saves.
         app._gl_checked = True
     ticks, frames, insp, keys = [], [], [], {"n": [], "pixel": [], "m": []}
-    cpu = {"ticks": [], "frames": []}
+    keys_cpu = {k: [] for k in keys}
+    cpu = {"ticks": [], "frames": [], "build": []}
+    build = []  # ticks that added parts of a 3D view or rendered it (App.defer: the window)
+    slow, last_key = [], None  # ticks over 100 ms: what they did, the key before them
     cam = state.scene.camera
 
     def timer():
@@ -102,6 +110,15 @@ def _window(args, msaa: bool) -> dict:
         else:
             app.tick()
 
+    gc_ms, gc_t0 = [], [0.0]
+
+    def gc_watch(phase, info):  # the garbage collector's pauses (the UI thread's too)
+        if phase == "start":
+            gc_t0[0] = time.perf_counter()
+        elif info.get("generation") == 2:
+            gc_ms.append(1000.0 * (time.perf_counter() - gc_t0[0]))
+
+    gc.callbacks.append(gc_watch)
     try:
         app.bind()
         app.redraw(keep_camera=False)
@@ -116,7 +133,7 @@ def _window(args, msaa: bool) -> dict:
         for f in range(args.frames):
             if f and f % max(args.frames // 8, 1) == 0:  # a key now and then
                 kind = ("n", "pixel", "m")[(f // max(args.frames // 8, 1)) % 3]
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 if kind == "n":
                     app.next()
                 elif kind == "m":
@@ -125,16 +142,29 @@ def _window(args, msaa: bool) -> dict:
                     x = (state.pixel_xy[0] + 7) % cam.width
                     app.set_pixel((x, state.pixel_xy[1]))
                 keys[kind].append(1000.0 * (time.perf_counter() - t0))
+                keys_cpu[kind].append(1000.0 * (time.process_time() - c0))
+                last_key = (f, kind)
             n0 = sum(state.prog.passes)
             waiting = state.inspection is None
+            building = (getattr(app, "_job", None) is not None
+                        or bool(getattr(app, "_render_due", False)))
             t0, c0 = time.perf_counter(), time.process_time()
             timer()
             dt = 1000.0 * (time.perf_counter() - t0)
             dc = 1000.0 * (time.process_time() - c0)  # this process: UI + Mesa's threads
             ticks.append(dt)
             cpu["ticks"].append(dc)
+            if dt > 100.0 or dc > 100.0:
+                slow.append({"tick": f, "wall_ms": round(dt, 1), "cpu_ms": round(dc, 1),
+                             "passes": sum(state.prog.passes) - n0, "building": building,
+                             "new_inspection": waiting and state.inspection is not None,
+                             "mode": state.mode, "stage": state.stage,
+                             "after_key": last_key})
             if waiting and state.inspection is not None:
                 insp.append(dt)
+            elif building:
+                build.append(dt)
+                cpu["build"].append(dc)
             elif sum(state.prog.passes) > n0:
                 frames.append(dt)
                 cpu["frames"].append(dc)
@@ -145,11 +175,14 @@ def _window(args, msaa: bool) -> dict:
         # ("bad X server connection", seen under heavy load): say which one was measured.
         window_class = type(plotter.ren_win).__name__
     finally:
+        gc.callbacks.remove(gc_watch)
         app.close()
         plotter.close()
     return {**_stats(frames), "ticks": _stats(ticks), "inspection_frames": _stats(insp),
+            "build_ticks": _stats(build), "slow_ticks": slow,
+            "gc_full_ms": [round(v, 1) for v in gc_ms],
             "cpu_ms": {k: _stats(v) for k, v in cpu.items()},
-            "keys_ms": keys, "passes": passes, "inspected": inspected,
+            "keys_ms": keys, "keys_cpu_ms": keys_cpu, "passes": passes, "inspected": inspected,
             "render_window": window_class,
             "load_average_after": list(os.getloadavg())}
 
@@ -333,12 +366,22 @@ def main(argv=None) -> int:
         if "ticks" in c:
             row("  every timer tick", c["ticks"])
             row("  new inspection", c["inspection_frames"])
+            row("  3D view steps", c["build_ticks"])
             row("  frames, CPU ms", c["cpu_ms"]["frames"])
             row("  ticks, CPU ms", c["cpu_ms"]["ticks"])
-            print("  keys (full redraws): " + "; ".join(
+            row("  3D view steps, CPU ms", c["cpu_ms"]["build"])
+            print("  keys: " + "; ".join(
                 f"{k}: " + ", ".join(f"{v:.0f}ms" for v in vs)
                 for k, vs in c["keys_ms"].items()) + f"  [inspecting {c['inspected']}; "
                 f"{c['render_window']}]")
+            print("  keys, CPU: " + "; ".join(
+                f"{k}: " + ", ".join(f"{v:.0f}ms" for v in vs)
+                for k, vs in c["keys_cpu_ms"].items()))
+            g = c["gc_full_ms"]
+            print(f"  full garbage collections: {len(g)}, longest "
+                  f"{max(g, default=0.0):.0f}ms; ticks over 100 ms: " + ", ".join(
+                      f"#{t['tick']} {t['wall_ms']:.0f}/{t['cpu_ms']:.0f}ms" for t in
+                      c["slow_ticks"]))
     print(f"wrote {args.out}")
     return 0
 

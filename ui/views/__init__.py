@@ -17,10 +17,14 @@ module                     owns
 :mod:`.coverage_view`      the pixels a primitive reaches, tinted on the render tile
 :mod:`.panel_view`         the image panels' tiles, drawn and updated in place
 :mod:`.image_panels`       lecture mode's single panels; figures of the panel modes
+:mod:`.view3d`             the 3D view of a stage, composed in steps (the window's ticks)
+:mod:`.baked_light`        translucent surfaces shaded on the CPU (software OpenGL)
 :mod:`.compose`            what each part of the window shows for a state
 :mod:`.window`             the window's state and its changes; :func:`~.window.screenshot`
 :mod:`.footer`             the window's chips, buttons, sliders and help (an overlay)
-:mod:`.interactive`        the on-screen window: keys, timer, stages, rendering
+:mod:`.interactive`        the on-screen window: keys, stages, rendering
+:mod:`.interactive_timer`  the window's timer: what a tick takes in and draws
+:mod:`.interactive_draw`   a change drawn in parts: only the renderers it touched
 :mod:`.interactive_params` what clicks, estimator chips, members, sliders change; recording
 :mod:`.script`             scripted steps for the window (tests under Xvfb)
 :mod:`.lecture`            lecture mode in the window

@@ -1,7 +1,8 @@
 """What each part of the window shows for a :class:`ui.views.window.ViewState`: the layout
 applied to the renderers, the title and caption, the 3D view of the stage, the stage panel and
 the image panels (:func:`compose` draws them all; the window's timer redraws only the image
-panels and the stage panel, :func:`compose_images` and :func:`compose_panel`).
+panels and the stage panel, :func:`compose_images` and :func:`compose_panel`, and builds the
+3D view over several ticks, :func:`compose_steps` and :mod:`ui.views.view3d`).
 
 Composition only: nothing here handles an event or waits for a computation (the state, a
 :class:`ui.views.window.ViewState`, holds what the background processes computed), so the
@@ -17,22 +18,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from psurf_core.inspect import member_primitives, reconstruct_hit
-
 from . import (
     controls,
     coverage_view,
-    hits_view,
     image_panels,
-    primitives_view,
     scene_view,
     stage_text,
 )
 from ._vtk import pv
 from .layout import CAPTION_PT, window_layout
-from .scene_view import FONT, FONT_SMALL, FONT_TITLE, add_text, fit_font, pt, wrap_to
-from .stage_text import coverage_target
+from .scene_view import FONT_SMALL, FONT_TITLE, add_text, fit_font, pt, wrap_to
 from .stepper import DEFAULT_SIZE, STAGES, stage_index
+from .view3d import compose_3d, compose_3d_steps, recon, run_steps  # noqa: F401 (re-exported)
 
 HELP = """keys
   n / p    next / previous stage
@@ -70,19 +67,10 @@ _PARTS = ((CELL_TITLE, "title"), (CELL_3D, "view3d"), (CELL_PANEL, "panel"),
 
 
 
-def _recon(state):
-    ins = state.inspection
-    if ins is None or len(ins.table) == 0:
-        return None, None
-    order = stage_text.hit_order(ins)
-    k = min(max(state.hit, 0), len(order) - 1)
-    return reconstruct_hit(ins, int(order[k])), k
-
-
 def panel_text(state) -> str:
     """The stage panel's text (see :func:`ui.views.stage_text.panel_text`)."""
-    recon, k = _recon(state) if state.stage == "reconstruct" else (None, None)
-    return stage_text.panel_text(state, recon, k)
+    rec, k = recon(state) if state.stage == "reconstruct" else (None, None)
+    return stage_text.panel_text(state, rec, k)
 
 
 def state_layout(plotter: pv.Plotter, state, text: str):
@@ -144,130 +132,30 @@ def compose_title(plotter: pv.Plotter, state) -> None:
     add_text(plotter, text, 0.015, top, FONT_SMALL, size_px=cap_px, name="caption")
 
 
-def _compose_3d(plotter: pv.Plotter, state, camera=None,
-                with_scene: bool = True) -> None:
-    """The 3D view of the stage (labels are placed for ``camera``, the view it will have;
-    ``with_scene=False``: the scene's actors are there already)."""
-    ins = state.inspection
-    scene = state.scene
-    stage = state.stage
-    if with_scene:
-        before = set(plotter.renderer.actors)
-        scene_view.add_scene(plotter, scene, labels=_scene_labels(stage))
-        state.scene_actors = set(plotter.renderer.actors) - before
-    # Drawn apart from the scene, so a moved pixel keeps the scene's actors.
-    scene_view.add_picked_pixel(plotter, scene, state.pixel_xy)
-    if ins is None:
-        add_text(plotter, "computing...", 0.5, 0.97, FONT, name="computing", align="center",
-                 colour="#444444")
-        return
-    t = ins.table
-    top = stage_text.hit_order(ins)[: stage_text.TABLE_ROWS]
-    if stage == "trace":
-        primitives_view.add_paths(plotter, ins.paths, scene, state.n_paths)
-    elif stage == "create":
-        primitives_view.add_paths(plotter, ins.paths, scene, state.n_paths, opacity=0.35,
-                                  line_width=3)
-        sel = primitives_view.create_selection(ins, state.n_paths)
-        primitives_view.add_primitives(plotter, ins, sel, legend_loc="lower right")
-    elif stage in ("intersect", "evaluate"):
-        hits_view.add_query_ray(plotter, ins)
-        if stage == "intersect":
-            sel = primitives_view.create_selection(ins, state.n_paths)
-            primitives_view.add_primitives(plotter, ins, sel, opacity=0.08, edges=False,
-                                           legend=False, name="context")
-        hits_view.add_hit_primitives(plotter, ins, top)
-        hits_view.add_hit_points(plotter, ins, np.arange(len(t)),
-                                 labels=(stage == "evaluate"), camera=camera)
-        if stage == "intersect":
-            hits_view.add_normals(plotter, ins, top[: stage_text.NORMAL_ROWS], camera=camera)
-    else:
-        hits_view.add_query_ray(plotter, ins)
-        recon, _ = _recon(state)
-        if recon is not None:
-            members = member_primitives(ins, recon)
-            if members:  # every member's surface through this path, with its weight
-                hits_view.add_member_surfaces(plotter, ins, recon, members)
-            else:  # a kernel estimator: no exact path, only its own primitive
-                hits_view.add_hit_primitives(plotter, ins, [recon["row"]], opacity=0.6)
-            hits_view.add_reconstruction(plotter, ins, recon, camera=camera)
-    target = coverage_target(state) if state.coverage else None
-    if target is not None:
-        name, batch, prim = target
-        primitives_view.add_primitives(plotter, ins, {(name, batch): np.array([prim])},
-                                       opacity=0.3, name="coverage", legend=False, width=6.0,
-                                       list_empty=False)
-
-
-def _scene_labels(stage: str) -> bool:
-    """Whether the scene's own labels (light, camera) are drawn: not where the stage labels
-    points of its own (Evaluate's hits, Reconstruct's vertices), which they would cover."""
-    return stage not in ("evaluate", "reconstruct")
-
-
-def _home_camera(state, view_aspect: float | None = None):
-    """``(key, camera)``: where the 3D view looks by default at this stage (a pinned camera
-    (lecture); Reconstruct: framing the selected hit's path; otherwise the overview)."""
-    if state.camera_pin is not None:
-        return ("pin", state.camera_pin), [tuple(map(float, v)) for v in state.camera_pin]
-    if state.stage == "reconstruct":
-        recon, k = _recon(state)
-        if recon is not None and recon.get("polyline") is not None:
-            key = ("recon", state.pixel_xy, state.pass_index, k, state.estimator.spec)
-            return key, hits_view.reconstruct_camera(recon, state.scene)
-    aspect = round(view_aspect, 2) if view_aspect else None
-    return ("overview", aspect), scene_view.overview_camera(state.scene, aspect=aspect)
-
-
 def compose(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None:
     """(Re)draw every part of the window for ``state``.
 
     ``keep_camera`` keeps the 3D view where the user turned it, unless the stage's own view
     changed (entering Reconstruct, another hit there: it frames the new path).
     """
+    run_steps(compose_steps(plotter, state, keep_camera=keep_camera))
+
+
+def compose_steps(plotter: pv.Plotter, state, *, keep_camera: bool = False,
+                  view3d: bool = True):
+    """:func:`compose` as a generator (:mod:`ui.views.view3d`): the first step lays the window
+    out and draws the title, the image panels, the stage panel and the start of the 3D view
+    (the scene, "drawing..."); each later step adds a part of the 3D view.
+    ``view3d=False`` leaves the 3D view as it is (nothing it shows changed)."""
     scene_view.set_scale(plotter.window_size[1])
     text = panel_text(state)
     apply_layout(plotter, state, state_layout(plotter, state, text))
     compose_title(plotter, state)
-    plotter.subplot(*CELL_3D)
-    compose_3d(plotter, state, keep_camera=keep_camera)
     compose_images(plotter, state)
     compose_panel(plotter, state, text)
-
-
-def compose_3d(plotter: pv.Plotter, state, *, keep_camera: bool = False) -> None:
-    """(Re)draw the 3D view of ``state`` into the plotter's current renderer: the window's
-    3D cell, or a plotter of its own (the web page's 3D view, :mod:`ui.web`).
-
-    ``keep_camera`` as in :func:`compose`.
-    """
-    cam_pos = plotter.camera_position if keep_camera else None
-    x0, y0, x1, y1 = plotter.renderer.GetViewport()
-    w, h = plotter.window_size
-    key, home = _home_camera(state, (x1 - x0) * w / max((y1 - y0) * h, 1.0))
-    if cam_pos is None or key != state.framed:
-        cam_pos = home
-    state.framed = key
-    cam_pos = [tuple(map(float, v)) for v in cam_pos]
-    ren = plotter.renderer
-    _clear_bars(plotter, ren)
-    # The scene (box, lights, occluders, camera) stays when only the stage or the pixel
-    # changed. (``ren.actors`` builds a dict on every access: read it once.)
-    key3d = (id(state.scene), _scene_labels(state.stage))
-    actors = ren.actors
-    reuse = (state.scene_key == key3d and bool(state.scene_actors)
-             and all(n in actors for n in state.scene_actors))
-    if reuse:
-        stale = [a for n, a in actors.items() if n not in state.scene_actors]
-        if stale:  # by actor, not by name: a name also removes every 'name-...' actor
-            ren.remove_actor(stale, render=False)
-    else:
-        ren.clear_actors()
-    ren.set_background(scene_view.BACKGROUND)
-    _compose_3d(plotter, state, camera=cam_pos, with_scene=not reuse)
-    state.scene_key = key3d
-    plotter.camera_position = cam_pos
-    plotter.renderer.ResetCameraClippingRange()
+    if view3d:
+        plotter.subplot(*CELL_3D)
+        yield from compose_3d_steps(plotter, state, keep_camera=keep_camera)
 
 
 def compose_panel(plotter: pv.Plotter, state, text: str | None = None) -> bool:
@@ -316,13 +204,6 @@ def compose_panel(plotter: pv.Plotter, state, text: str | None = None) -> bool:
     elif message is not None:
         ren.remove_actor(message, render=False)
     return True
-
-
-def _clear_bars(plotter: pv.Plotter, renderer) -> None:
-    """Remove the colour bars drawn in ``renderer`` (the image panels keep theirs)."""
-    for title in list(plotter.scalar_bars.keys()):
-        if renderer.HasViewProp(plotter.scalar_bars[title]):
-            plotter.remove_scalar_bar(title)
 
 
 def compose_images(plotter: pv.Plotter, state) -> None:

@@ -22,6 +22,7 @@ from psurf_core.render import render
 from . import controls, primitives_view
 from ._vtk import pv
 from .footer import Controls
+from .interactive_draw import Drawer
 from .interactive_params import EstimatorControls, MediumControls, Pointer, Recorder
 from .interactive_timer import Ticker
 from .layout import next_focus
@@ -93,7 +94,7 @@ def run(scene_path: str, estimator: str = "planes", *, estimators=None, seed: in
         app.close()
 
 
-class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
+class App(Ticker, Drawer, Pointer, EstimatorControls, MediumControls, Recorder):
     """Key, mouse, widget and timer bindings of the interactive window (what a click picks, the
     inspected estimator and its members, the medium / photon controls and the recorder are
     :mod:`ui.views.interactive_params`'s).
@@ -105,9 +106,16 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
     #: Timer period (ms): progressive passes, inspections, debounced changes, script steps.
     TICK_MS = 200
 
-    def __init__(self, plotter: pv.Plotter, state: ViewState, *, with_controls: bool = True):
+    def __init__(self, plotter: pv.Plotter, state: ViewState, *, with_controls: bool = True,
+                 defer: bool | None = None):
         self.p = plotter
         self.s = state
+        #: Build the 3D view over the timer's ticks (:mod:`ui.views.interactive_timer`);
+        #: default: in a window on the screen, not off-screen (tests, screenshots).
+        self.defer = not plotter.off_screen if defer is None else bool(defer)
+        self._job = None  # the 3D view's remaining steps (ui.views.view3d)
+        self._frame_due = False  # passes merged, the panels not drawn yet (3D work first)
+        self._parts_due = None  # parts composed but not rendered yet (no room in their tick)
         if not state.specs:
             state.specs = (state.estimator.spec,)
         if state.base_scene is None:
@@ -218,8 +226,22 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
                                            recording=self.recorder is not None)
         s.sliders_on = self.controls.sliders_on
 
-    def redraw(self, keep_camera: bool = True) -> None:
-        """Compose every part of the window for the state and render it."""
+    def redraw(self, keep_camera: bool = True, *, view3d: bool = True, images: bool = True,
+               everything: bool = False) -> None:
+        """Compose every part of the window for the state and render it.
+
+        With :attr:`defer` (the window) the 3D view is built over the next timer ticks
+        (:meth:`~ui.views.interactive_timer.Ticker.tick`): this composes and renders the other
+        parts and the 3D view's first step (its scene, "drawing...") now. ``view3d=False``:
+        nothing the 3D view shows changed; it is neither composed nor drawn again (unless the
+        layout moved it); ``images=False``: nor are the image panels (a stage step);
+        ``everything``: every part is drawn again all the same (the help box, which lies
+        over all of them, came or went).
+        """
+        if self.defer:
+            self.redraw_deferred(keep_camera, view3d=view3d, images=images,
+                                 everything=everything)
+            return
         self.compose_all(keep_camera)
         self.p.render()
         self._render_due = False
@@ -227,31 +249,29 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
 
     def compose_all(self, keep_camera: bool = True) -> None:
         """Compose every part of the window for the state, without rendering it."""
-        # Once a window is shown pyvista renders after every added actor; composing a stage
-        # adds dozens, so rendering is held until the whole frame is built (as in lecture mode).
-        held = self.p.suppress_rendering
-        self.p.suppress_rendering = True
-        try:
+        with self.held():
+            self._job = None
             self._draw_controls()
             compose(self.p, self.s, keep_camera=keep_camera)
-            if self.controls is not None and self.s.layout is not None:
-                self.controls.place_sliders(self.s.layout.sliders)
-                self.controls.show_help(HELP, self.s.show_help)
-        finally:
-            self.p.suppress_rendering = held
+            self._place_widgets()
+
+    def _place_widgets(self) -> None:
+        if self.controls is not None and self.s.layout is not None:
+            self.controls.place_sliders(self.s.layout.sliders)
+            self.controls.show_help(HELP, self.s.show_help)
 
     # ---------------------------------------------------------------- stages
     def next(self) -> None:
         self.s.stepper.next()
-        self.redraw()
+        self.redraw(images=False)
 
     def previous(self) -> None:
         self.s.stepper.previous()
-        self.redraw()
+        self.redraw(images=False)
 
     def toggle_help(self) -> None:
         self.s.show_help = not self.s.show_help
-        self.redraw()
+        self.redraw(view3d=False, everything=True)
 
     def _reinspect(self) -> None:
         reinspect(self.s)
@@ -313,7 +333,7 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
             s.message = "playing (background worker)" if s.playing else "paused"
         else:
             s.message = "playing: one pass per tick" if s.playing else "paused"
-        self.redraw()
+        self.redraw(view3d=False)
 
     def restart(self, message: str) -> None:
         """Start the render over (scene, estimator or photons changed): the progressive
@@ -348,7 +368,7 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
         locked = s.var_scale.toggle()
         s.message = ("variance scale fixed: the maps darken as they converge" if locked
                      else "variance scale auto: refitted to every frame")
-        self.redraw()
+        self.redraw(view3d=False)
 
     def next_focus(self) -> None:
         """Cycle the layouts (split / images large / 3D view large)."""
@@ -366,14 +386,15 @@ class App(Ticker, Pointer, EstimatorControls, MediumControls, Recorder):
             s.mode = next_mode(s.mode)
             s.prog.set_breakdown(s.mode != "render")
             s.message = f"panels: {s.mode}: {MODE_HELP[s.mode]}"
-        self.redraw()
+        self.redraw(view3d=False)
 
     def save(self) -> None:
         s = self.s
         out = f"psurf-{s.stage}-{s.pixel_xy[0]}x{s.pixel_xy[1]}-pass{s.acc.n}.png"
+        self.settle()  # the 3D view complete
         self.p.screenshot(out)
         s.message = f"saved {os.path.abspath(out)}"
-        self.redraw()
+        self.redraw(view3d=False)
 
     def quit(self) -> None:
         if self.p.iren is not None:

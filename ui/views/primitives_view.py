@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import baked_light
 from ._vtk import pv
 from .palette import technique_colour, text_on
 from .scene_view import (
@@ -227,18 +228,36 @@ def create_selection(inspection, n_paths: int, max_prims: int = MAX_PRIMS) -> di
     return sel
 
 
-def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity: float = 0.45,
-                   edges: bool = True, name: str = "prims", legend: bool = True,
-                   legend_loc: str = "lower right", width: float = 3.0,
-                   list_empty: bool = True) -> dict:
+def add_primitives(plotter: pv.Plotter, inspection, selection: dict, **kw) -> dict:
     """Draw the selected primitives of every technique; returns ``technique -> status``.
 
     ``status`` is ``"N drawn"``, ``"N bounds only"`` or ``"none"``; techniques with nothing
-    selected appear in the legend as "none here" when ``list_empty``.
+    selected appear in the legend as "none here" when ``list_empty``. Keywords as
+    :func:`primitive_steps`.
     """
+    steps = primitive_steps(plotter, inspection, selection, **kw)
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            return stop.value
+
+
+def primitive_steps(plotter: pv.Plotter, inspection, selection: dict, *, opacity: float = 0.45,
+                    edges: bool = True, name: str = "prims", legend: bool = True,
+                    legend_loc: str = "lower right", width: float = 3.0,
+                    list_empty: bool = True):
+    """:func:`add_primitives` one technique per step (a generator; it returns the status):
+    meshing and clipping a technique's primitives the first time is the dearest part of a
+    stage's 3D view (the window spreads the steps over its timer ticks,
+    :mod:`ui.views.view3d`). Each step draws into the plotter's current renderer."""
     status = {}
     entries = []
+    drew = False  # a step ends after a technique that had primitives to mesh and draw
     for tname, tech in inspection.techniques.items():
+        if drew:
+            yield
+        drew = False
         meshes, how, count = [], "surface", 0
         for (n2, b), rows in selection.items():
             if n2 != tname or len(rows) == 0:
@@ -251,6 +270,7 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
             if mesh.n_points:
                 meshes.append(mesh)
         col = technique_colour(tname)
+        drew = count > 0
         if count == 0:
             status[tname] = "none"
             if list_empty:
@@ -263,16 +283,23 @@ def add_primitives(plotter: pv.Plotter, inspection, selection: dict, *, opacity:
                 plotter.add_mesh(merged, color=col, line_width=px(width),
                                  name=f"{name}-{tname}:mesh")
             else:
-                plotter.add_mesh(merged, color=col, opacity=opacity, show_edges=False,
-                                 smooth_shading=False, name=f"{name}-{tname}:mesh",
-                                 culling=False)
-                if edges:
-                    fe = merged.extract_feature_edges(boundary_edges=True, feature_edges=False,
-                                                      manifold_edges=False,
-                                                      non_manifold_edges=False)
-                    if fe.n_points:
-                        plotter.add_mesh(fe, color=col, line_width=px(width),
-                                         name=f"{name}-{tname}:edges")
+                fe = (merged.extract_feature_edges(boundary_edges=True, feature_edges=False,
+                                                   manifold_edges=False,
+                                                   non_manifold_edges=False)
+                      if edges else None)
+                if baked_light.enabled(plotter):  # the window in software OpenGL
+                    baked_light.shade(merged, col, plotter.renderer)
+                    plotter.add_mesh(merged, scalars=baked_light.SHADE, rgb=True,
+                                     lighting=False, opacity=opacity, show_edges=False,
+                                     show_scalar_bar=False, name=f"{name}-{tname}:mesh",
+                                     culling=False)
+                else:
+                    plotter.add_mesh(merged, color=col, opacity=opacity, show_edges=False,
+                                     smooth_shading=False, name=f"{name}-{tname}:mesh",
+                                     culling=False)
+                if fe is not None and fe.n_points:
+                    plotter.add_mesh(fe, color=col, line_width=px(width),
+                                     name=f"{name}-{tname}:edges")
         tag = "bounds only (no drawer)" if how == "bounds" else "drawn"
         status[tname] = f"{count} {tag}"
         entries.append([f"{tech.family}: {tname} ({count}{', bounds' if how == 'bounds' else ''})",

@@ -113,7 +113,7 @@ def play_step(app, step: str) -> None:
         print(f"window: killed render worker {pid} with {s.acc.n} passes merged", flush=True)
         return
     if step.startswith("shot:"):
-        app.p.render()
+        app.settle()  # the 3D view complete (the window builds it over several ticks)
         app.p.screenshot(step[5:])
         print(f"window: wrote {step[5:]}", flush=True)
         return
