@@ -110,7 +110,8 @@ def mitsuba_cpu_plan(scene, cpu_seconds: float, threads: int, spp: int | None = 
 def psurf_render(scene_path, kmin, kmax, estimator, seconds, seed, jobs, photons, out,
                  passes=None):
     """Run ``app.py render`` for ``seconds`` (or ``passes``) and load its .npz (dict of mean,
-    var, passes, seconds, ...).
+    var, ``sum_var``: the per-pass variance of the image sum, ``None`` when the file has none,
+    passes, seconds, ...).
 
     A timed render is preceded by an untimed one of ``2 x jobs`` passes of the same command:
     ``render`` compiles its kernels before its clock starts, but on a small warm-up pass; the
@@ -136,7 +137,9 @@ def psurf_render(scene_path, kmin, kmax, estimator, seconds, seed, jobs, photons
     wall = time.perf_counter() - t0
     with np.load(out) as z:
         d = {k: z[k] for k in ("mean", "var", "passes", "seconds", "photons_per_pass", "spp")}
+        sum_var = np.asarray(z["sum_var"], np.float64) if "sum_var" in z.files else None
     return {"mean": d["mean"].astype(np.float64), "var": d["var"].astype(np.float64),
+            "sum_var": sum_var,
             "passes": int(d["passes"]), "seconds": float(d["seconds"]),
             "photons_per_pass": int(d["photons_per_pass"]), "spp": int(d["spp"]),
             "process_wall_seconds": wall,
@@ -162,7 +165,8 @@ def mitsuba_render(scene, seconds, seed, jobs, spp):
     if spp is None:
         spp = calibrate_spp(make, seconds)
     r = make(spp).render(seconds=seconds, seed=seed)
-    return {"mean": r.mean, "var": r.var, "passes": r.passes, "seconds": r.seconds,
+    return {"mean": r.mean, "var": r.var, "sum_var": r.sum_var, "passes": r.passes,
+            "seconds": r.seconds,
             "spp": r.spp, "warmup_seconds": r.warmup_seconds, "variant": r.variant}
 
 
@@ -256,29 +260,43 @@ def reference_from_file(path, kmin: int, kmax: int) -> dict:
                                  else None),
             "seed": (int(d["seed"]) if "seed" in d else None),
             "seconds": float(d.get("seconds", 0.0)), "file": str(path), "render_seconds": None}
-    return {"mean": d["mean"], "var_mean": d["var"] / passes, "seconds": part["seconds"],
-            "parts": [part], "file": str(path)}
+    return {"mean": d["mean"], "var_mean": d["var"] / passes,
+            "sum_var_mean": _sum_var_mean(d), "seconds": part["seconds"], "parts": [part],
+            "file": str(path)}
+
+
+def _sum_var_mean(d: dict) -> np.ndarray | None:
+    """(3,) variance of a render's mean image sum, ``sum_var / passes`` (``None`` when the
+    .npz has no ``sum_var``: written before it was kept)."""
+    if d.get("sum_var") is None:
+        return None
+    return np.asarray(d["sum_var"], np.float64) / max(int(d["passes"]), 1)
 
 
 def reference(case, scene, scene_path, kmin, kmax, args) -> dict:
     """The case's reference: the sum of its :func:`reference_parts`, each ``--ref-time``
-    seconds (independent renders, so the variances of their means add), also written to
-    :func:`composite_path` (``var`` there is the variance of the mean, with ``passes = 1``).
+    seconds (independent renders, so the variances of their means add, and so do those of
+    their image sums), also written to :func:`composite_path` (``var`` and ``sum_var`` there
+    are the variances of the mean, with ``passes = 1``).
 
     Returns
     -------
     dict
         ``mean`` and ``var_mean`` (variance of the mean, per pixel) as (H, W, 3) arrays,
-        ``seconds`` (all parts), ``parts`` (renderer, window, passes, spp, seconds, file,
+        ``sum_var_mean`` (3,), the variance of the mean image's sum (``None`` unless every
+        part stores its ``sum_var``; parts cached before it was kept do not), ``seconds``
+        (all parts), ``parts`` (renderer, window, passes, spp, seconds, file,
         ``render_seconds``: ``None`` when read from the cache) and ``file`` (the sum).
     """
     mean = var_mean = None
+    sum_vars = []  # each part's (3,) sum_var / passes, None when it has none
     parts, seconds = [], 0.0
     for renderer, a, b in reference_parts(args.reference, kmin, kmax):
         d = render_part(renderer, case, scene, scene_path, a, b, args)
         vm = d["var"] / max(int(d["passes"]), 1)
         mean = d["mean"] if mean is None else mean + d["mean"]
         var_mean = vm if var_mean is None else var_mean + vm
+        sum_vars.append(_sum_var_mean(d))
         seconds += float(d["seconds"])
         parts.append({"renderer": renderer, "min_scatter": a, "max_scatter": b,
                       "estimator": str(d.get("estimator", renderer)),
@@ -290,11 +308,14 @@ def reference(case, scene, scene_path, kmin, kmax, args) -> dict:
     out = composite_path(args.work, case, args.reference, kmin, kmax, args.ref_time)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp.npz")
-    np.savez_compressed(tmp, mean=mean, var=var_mean, passes=np.int64(1),
+    sum_var_mean = (None if any(v is None for v in sum_vars)
+                    else np.sum(sum_vars, axis=0))
+    sums = {} if sum_var_mean is None else {"sum_var": sum_var_mean}
+    np.savez_compressed(tmp, mean=mean, var=var_mean, passes=np.int64(1), **sums,
                         seconds=np.float64(seconds), min_scatter=np.int64(kmin),
                         max_scatter=np.int64(kmax), seed=np.int64(REFERENCE_SEED),
                         estimator=np.str_("+".join(f"{p['renderer']}[{p['min_scatter']}.."
                                                    f"{p['max_scatter']}]" for p in parts)))
     tmp.replace(out)
-    return {"mean": mean, "var_mean": var_mean, "seconds": seconds, "parts": parts,
-            "file": str(out)}
+    return {"mean": mean, "var_mean": var_mean, "sum_var_mean": sum_var_mean,
+            "seconds": seconds, "parts": parts, "file": str(out)}

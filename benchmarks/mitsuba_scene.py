@@ -16,8 +16,9 @@ estimate; its variance across passes is what this module reports.
 As a command, ``python benchmarks/mitsuba_scene.py SCENE.toml (--time S | --passes P)
 [--spp N] [--min-scatter A] [--max-scatter B] [--seed S] [--jobs J] [--variant V] --out X.npz``
 renders the converted scene and writes an ``app.py render``-style .npz (``mean``, ``var``,
-``passes``, ``seconds``, ``spp``, ``seed``, ``min_scatter``, ``max_scatter``, ``estimator`` =
-``mitsuba-volpath:<variant>``), which ``app.py compare --reference`` also reads.
+``sum_var``, ``passes``, ``seconds``, ``spp``, ``seed``, ``min_scatter``, ``max_scatter``,
+``estimator`` = ``mitsuba-volpath:<variant>``), which ``app.py compare --reference`` also
+reads.
 """
 
 from __future__ import annotations
@@ -62,6 +63,9 @@ class MitsubaRender:
         Wall time of the passes (after the warm-up that compiles the kernels).
     warmup_seconds : float
     variant : str
+    sum_var : (3,) float64 or None
+        Sample variance across passes of one pass's image sum (over the pixels), per channel
+        (zeros after one pass), as ``app.py render`` writes it.
     """
 
     mean: np.ndarray
@@ -71,17 +75,19 @@ class MitsubaRender:
     seconds: float
     warmup_seconds: float
     variant: str
+    sum_var: np.ndarray | None = None
 
 
 def save_npz(path, render: MitsubaRender, scene: Scene, seed: int) -> None:
     """Write ``render`` as an ``app.py render``-style .npz (module docstring), atomically."""
     path = os.fspath(path)
     tmp = path + ".tmp.npz"
+    sums = {} if render.sum_var is None else {"sum_var": np.asarray(render.sum_var, np.float64)}
     np.savez(tmp, mean=render.mean.astype(np.float32), var=render.var.astype(np.float32),
              passes=render.passes, spp=render.spp, seconds=render.seconds, seed=int(seed),
              min_scatter=scene.min_scatter, max_scatter=scene.max_scatter,
              estimator=f"mitsuba-volpath:{render.variant}",
-             warmup_seconds=render.warmup_seconds)
+             warmup_seconds=render.warmup_seconds, **sums)
     os.replace(tmp, path)
 
 
@@ -143,6 +149,7 @@ class MitsubaRenderer:
             self.pass_image(seed=pass_seed(seed, 0, tag=1))
         t_warm = time.perf_counter() - t0
         mean = m2 = None  # Welford's running mean and sum of squared deviations
+        sum_m2 = np.zeros(3)  # the same for the image sums (their deviations: delta's sums)
         n = 0
         start = time.perf_counter()
         while True:
@@ -154,12 +161,14 @@ class MitsubaRenderer:
                 delta = img - mean
                 mean += delta / n
                 m2 += delta * (img - mean)
+                ds = delta.sum(axis=(0, 1))
+                sum_m2 += ds * ds * ((n - 1) / n)
             spent = time.perf_counter() - start
             if (passes is not None and n >= passes) or (seconds is not None and spent >= seconds):
                 break
         var = m2 / (n - 1) if n > 1 else np.zeros_like(mean)
         return MitsubaRender(mean, np.maximum(var, 0.0), n, self.spp, spent, t_warm,
-                             self.variant)
+                             self.variant, sum_m2 / (n - 1) if n > 1 else sum_m2)
 
 
 def main(argv=None) -> int:

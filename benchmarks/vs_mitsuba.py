@@ -42,7 +42,11 @@ the reference (``psurf_core.metrics.relmse``); ``var``, the mean per-pixel varia
 image (per-pass variance / passes); ``relvar``, the relMSE that this variance alone explains;
 ``floor``, the reference's own relVar (in every score); ``sum_z``, the z-score of the image sum
 against the reference's (a bias or a convention mismatch shows as ``|sum_z| >> 3``; only with
-at least :data:`MIN_PASSES_FOR_Z` passes, the largest of the channels in the table). The ratios
+at least :data:`MIN_PASSES_FOR_Z` passes, the largest of the channels in the table), its
+standard error from the per-pass image sums both renders store (``sum_z_method``:
+``"per-pass sums"``) or, for a file without them, from the per-pixel variances as if the
+pixels were independent (``"independent pixels"``, starred in the table: far too small for
+photon estimators, whose pixels are correlated within a pass; see :func:`score`). The ratios
 are psurf / Mitsuba: ``relmse_ratio`` as measured; ``relmse_above_floor_ratio`` of
 ``relmse - floor`` (each score's expected value is its own relMSE against the truth plus the
 floor, so the plain ratio is pulled towards 1 when the floor is not small; ``None`` when a score
@@ -123,18 +127,58 @@ def _estimators(flags: list[str], cases) -> dict[str, str]:
 MIN_PASSES_FOR_Z = 30
 
 
+#: ``sum_z_method`` values: the standard error of the image-sum difference from the stored
+#: per-pass image sums, or from the per-pixel variances as if the pixels were independent.
+PER_PASS_SUMS, INDEPENDENT_PIXELS = "per-pass sums", "independent pixels"
+
+
+def sum_standard_error(img: dict, ref: dict) -> tuple[np.ndarray, str]:
+    """(3,) standard error of ``sum(img mean) - sum(ref mean)`` per channel, and its method.
+
+    Parameters
+    ----------
+    img : dict
+        ``mean``, ``var`` (H, W, 3), ``passes``, optionally ``sum_var`` (3,): the per-pass
+        variance of the image sum (``app.py render``, ``mitsuba_scene``).
+    ref : dict
+        ``var_mean`` (H, W, 3), optionally ``sum_var_mean`` (3,): the variance of its mean
+        image's sum (:func:`mitsuba_renders.reference`).
+
+    Returns
+    -------
+    se : (3,) float64
+    method : str
+        :data:`PER_PASS_SUMS` when both carry their sums' variances: ``sqrt(sum_var / passes
+        + sum_var_mean)``, right whatever the correlation between the pixels of a pass.
+        Otherwise :data:`INDEPENDENT_PIXELS`: the per-pixel variances of the means summed,
+        right for a path tracer's independent pixels but far too small for photon
+        estimators (one photon's surface reaches many pixels of its pass).
+    """
+    n = max(int(img["passes"]), 1)
+    if img.get("sum_var") is not None and ref.get("sum_var_mean") is not None:
+        return np.sqrt(np.asarray(img["sum_var"]) / n + ref["sum_var_mean"]), PER_PASS_SUMS
+    var = (img["var"] / n).sum(axis=(0, 1)) + ref["var_mean"].sum(axis=(0, 1))
+    return np.sqrt(var), INDEPENDENT_PIXELS
+
+
 def score(img: dict, ref: dict) -> dict:
-    """relMSE, Var, relVar and the image-sum z of a render against the reference."""
+    """relMSE, Var, relVar and the image-sum z of a render against the reference.
+
+    ``sum_z`` (per channel; ``None`` below :data:`MIN_PASSES_FOR_Z` passes) divides the
+    difference of the image sums by :func:`sum_standard_error`; ``sum_z_method`` says how
+    that was computed (``None`` with no ``sum_z``).
+    """
     var_mean = img["var"] / max(img["passes"], 1)
-    ref_var_mean = ref["var_mean"]
-    se = np.sqrt(var_mean.sum(axis=(0, 1)) + ref_var_mean.sum(axis=(0, 1)))
+    se, method = sum_standard_error(img, ref)
     with np.errstate(divide="ignore", invalid="ignore"):
         sum_z = (img["mean"].sum(axis=(0, 1)) - ref["mean"].sum(axis=(0, 1))) / se
+    enough = img["passes"] >= MIN_PASSES_FOR_Z
     return {
         "relmse": relmse(img["mean"], ref["mean"]),
         "var": float(np.mean(var_mean)) if img["passes"] > 1 else None,
         "relvar": var_relmse(var_mean, ref["mean"]) if img["passes"] > 1 else None,
-        "sum_z": ([float(x) for x in sum_z] if img["passes"] >= MIN_PASSES_FOR_Z else None),
+        "sum_z": [float(x) for x in sum_z] if enough else None,
+        "sum_z_method": method if enough else None,
         "mean_radiance": float(np.mean(img["mean"])),
     }
 
@@ -212,7 +256,8 @@ def _x(x):
 
 
 def markdown(rows: list[dict]) -> str:
-    """The comparison table (psurf / Mitsuba ratios and both sides' numbers)."""
+    """The comparison table (psurf / Mitsuba ratios and both sides' numbers); a sum z from
+    the independent-pixel standard error is starred, with a note under the table."""
     head = ("| case | K | psurf estimator | psurf relMSE | Mitsuba relMSE | **relMSE ratio** | "
             "ratio above the ref floor | Var ratio | relVar ratio, time-normalized "
             "| psurf s, passes | Mitsuba s, passes (spp) | ref floor | sum z psurf, Mitsuba |")
@@ -220,8 +265,7 @@ def markdown(rows: list[dict]) -> str:
     for r in rows:
         k = f"{r['min_scatter']}..{'∞' if r['max_scatter'] < 0 else r['max_scatter']}"
         p, m = r["psurf"], r["mitsuba"]
-        zs = ", ".join("–" if x["sum_z"] is None else f"{max(x['sum_z'], key=abs):.1f}"
-                       for x in (p, m))
+        zs = ", ".join(_z(x) for x in (p, m))
         lines.append(
             f"| {r['case']} | {k} | `{r['estimator']}` | {_f(p['relmse'])} | {_f(m['relmse'])} "
             f"| **{_x(r['relmse_ratio'])}** | {_x(r['relmse_above_floor_ratio'])} "
@@ -229,7 +273,20 @@ def markdown(rows: list[dict]) -> str:
             f"| {_x(r['relvar_ratio_time_normalized'])} | {p['seconds']:.1f}, {p['passes']} "
             f"| {m['seconds']:.1f}, {m['passes']} ({m['spp']}) "
             f"| {_f(r['reference']['relmse_floor'])} | {zs} |")
+    if any(x.get("sum_z_method") == INDEPENDENT_PIXELS
+           for r in rows for x in (r["psurf"], r["mitsuba"])):
+        lines += ["", "\\* sum z from per-pixel variances as if the pixels were independent "
+                  "(a render or reference without stored per-pass image sums): not a bias "
+                  "test for photon estimators."]
     return "\n".join(lines) + "\n"
+
+
+def _z(x: dict) -> str:
+    """The largest-magnitude channel's sum z (starred: independent-pixel standard error)."""
+    if x["sum_z"] is None:
+        return "–"
+    star = "\\*" if x.get("sum_z_method") == INDEPENDENT_PIXELS else ""
+    return f"{max(x['sum_z'], key=abs):.1f}{star}"
 
 
 def _commit() -> str:

@@ -124,12 +124,13 @@ CHECKPOINT_META_BYTES = 64 << 10
 
 
 def accumulator_bytes_per_pixel() -> int:
-    """Bytes per pixel of one :class:`~psurf_core.accumulate.Welford` (all its arrays)."""
+    """Bytes per pixel of one :class:`~psurf_core.accumulate.Welford` (all its per-pixel
+    arrays; its per-channel image-sum moment does not grow with the image)."""
     from .accumulate import Welford
 
     acc = Welford.empty((1, 1, 3))
     return int(sum(getattr(acc, f.name).nbytes for f in dataclasses.fields(acc)
-                   if hasattr(getattr(acc, f.name), "nbytes")))
+                   if getattr(getattr(acc, f.name), "shape", None) == acc.mean.shape))
 
 
 def format_bytes(n: float) -> str:

@@ -9,6 +9,10 @@ A checkpoint is one file ``DIR/checkpoint.npz`` (numpy only, no pickle) holding
   value, which :mod:`psurf_core.reliability` needs; a format-1 checkpoint (written before
   they were kept) still loads, its accumulator then does not know them
   (``Welford.has_tails`` is False) and the resumed render's image is the same;
+* ``sum_m2`` (optional in format 2, when ``meta["sums"]``): the (C,) moment of the per-pass
+  image sums (``Welford.sum_variance``). A checkpoint written before it was kept loads with
+  it unknown (``None``); an older psurf reading a newer file ignores it, so the format
+  number stays 2;
 * ``meta``: a JSON document with the format number, the psurf version, the *identity* of
   the render (:func:`render_identity`: scene file hash, estimator spec, seed and every
   setting that changes the numbers) and bookkeeping (seconds spent, scene path, argv, time).
@@ -45,6 +49,9 @@ READABLE_FORMATS = (1, 2)
 
 #: Arrays of a format-2 checkpoint beside ``n``, ``mean``, ``m2`` (when ``meta["tails"]``).
 _TAIL_KEYS = ("m3", "m4", "peak")
+
+#: The image-sum moment's array (when ``meta["sums"]``; absent from older files).
+_SUM_KEY = "sum_m2"
 
 
 class CheckpointError(ValueError):
@@ -155,8 +162,8 @@ def save_checkpoint(directory: str | os.PathLike, acc: Welford, identity: dict, 
     directory : path
         Must exist.
     acc : Welford
-        Not modified; ``n``, ``mean``, ``m2`` (and ``m3``, ``m4``, ``peak`` when it knows
-        them) are written as they are.
+        Not modified; ``n``, ``mean``, ``m2`` (and ``m3``, ``m4``, ``peak``, ``sum_m2`` when
+        it knows them) are written as they are.
     identity : dict
         :func:`render_identity` of the render.
     seconds : float
@@ -174,11 +181,14 @@ def save_checkpoint(directory: str | os.PathLike, acc: Welford, identity: dict, 
     final = checkpoint_path(directory)
     meta = {"format": FORMAT, "version": version, "passes": int(acc.n),
             "seconds": float(seconds), "written": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-            "tails": bool(acc.has_tails), "identity": identity, **(extra or {})}
+            "tails": bool(acc.has_tails), "sums": acc.sum_m2 is not None,
+            "identity": identity, **(extra or {})}
     arrays = {"n": np.int64(acc.n), "mean": np.asarray(acc.mean, dtype=np.float64),
               "m2": np.asarray(acc.m2, dtype=np.float64)}
     if acc.has_tails:
         arrays.update({k: np.asarray(getattr(acc, k), dtype=np.float64) for k in _TAIL_KEYS})
+    if acc.sum_m2 is not None:
+        arrays[_SUM_KEY] = np.asarray(acc.sum_m2, dtype=np.float64)
     tmp = os.path.join(os.fspath(directory), f".{CHECKPOINT_FILE}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as f:
@@ -228,7 +238,8 @@ def load_checkpoint(directory: str | os.PathLike) -> Checkpoint:
 
     Notes
     -----
-    A format-1 checkpoint loads with ``accumulator.has_tails`` False (see the module
+    A format-1 checkpoint loads with ``accumulator.has_tails`` False, and one written
+    before the image-sum moment was kept with ``accumulator.sum_m2`` None (see the module
     docstring).
     """
     directory = os.fspath(directory)
@@ -254,6 +265,8 @@ def load_checkpoint(directory: str | os.PathLike) -> Checkpoint:
                 meta = json.loads(str(d["meta"]))
                 tails = {k: np.array(d[k], dtype=np.float64) for k in _TAIL_KEYS
                          if k in d.files}
+                sum_m2 = (np.array(d[_SUM_KEY], dtype=np.float64) if _SUM_KEY in d.files
+                          else None)
     except CheckpointError:
         raise
     except Exception as e:  # truncated zip, bad JSON, pickled arrays, ...
@@ -285,4 +298,20 @@ def load_checkpoint(directory: str | os.PathLike) -> Checkpoint:
                 and peak_ok):
             raise CheckpointError(f"{path}: accumulator holds non-finite values")
         acc = Welford(n, mean, m2, tails["m3"], tails["m4"], tails["peak"])
+    if fmt >= 2:
+        acc.sum_m2 = _sum_moment(path, meta, sum_m2, mean.shape[-1:])
     return Checkpoint(path, acc, meta)
+
+
+def _sum_moment(path: str, meta: dict, sum_m2: np.ndarray | None, shape: tuple):
+    """The checked (C,) image-sum moment, or ``None`` when the file does not keep it."""
+    if not meta.get("sums"):
+        return None
+    if sum_m2 is None:
+        raise CheckpointError(f"{path}: checkpoint without its {_SUM_KEY}")
+    if sum_m2.shape != shape:
+        raise CheckpointError(f"{path}: inconsistent accumulator ({_SUM_KEY} "
+                              f"{sum_m2.shape}, channels {shape})")
+    if not np.all(np.isfinite(sum_m2)):
+        raise CheckpointError(f"{path}: accumulator holds non-finite values")
+    return sum_m2

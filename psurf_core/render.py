@@ -267,6 +267,12 @@ class RenderResult:
     seed: int
     accumulator: Welford | None = None
 
+    @property
+    def sum_var(self) -> np.ndarray | None:
+        """(3,) float64 variance across passes of one pass's image sum per channel
+        (``Welford.sum_variance``; correlated pixels included), ``None`` when unknown."""
+        return None if self.accumulator is None else self.accumulator.sum_variance
+
 
 #: Resolution and photons of :func:`warm_up`'s throw-away pass: enough pixels for the fused
 #: path (it declines 64 or fewer), few enough that the pass is cheap.

@@ -61,6 +61,7 @@ def format_1(directory) -> None:
         meta = json.loads(str(d["meta"]))
     meta["format"] = 1
     meta.pop("tails")
+    meta.pop("sums", None)
     meta["identity"].pop("reference_sampler", None)
     with open(path, "wb") as f:
         np.savez(f, **data, meta=np.str_(json.dumps(meta)))

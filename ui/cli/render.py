@@ -187,7 +187,8 @@ def initial_radius(estimator, scene, settings) -> float:
 
 
 def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict:
-    """The arrays of a render ``.npz`` (``mean``, ``var``, counts, ``radius``, provenance),
+    """The arrays of a render ``.npz`` (``mean``, ``var``, counts, ``radius``, provenance;
+    ``sum_var``, the (3,) per-pass variance of the image sum, when ``result`` knows it),
     updated with ``extra``."""
     from psurf_core import __version__
 
@@ -215,6 +216,11 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
     from psurf_core.reliability import npz_fields
 
     data.update(npz_fields(getattr(result, "accumulator", None)))
+    # The image sum's own per-pass variance: the pixels of a photon pass are correlated, so
+    # summing ``var`` over the pixels understates it (benchmarks/vs_mitsuba.py's sum z).
+    sum_var = getattr(result, "sum_var", None)
+    if sum_var is not None:
+        data["sum_var"] = np.asarray(sum_var, dtype=np.float64)
     data.update(extra or {})
     return data
 

@@ -282,7 +282,8 @@ class WebSession:
         res = SimpleNamespace(mean=run.acc.mean, var=run.acc.variance if run.acc.n > 1
                               else np.zeros_like(run.acc.mean), passes=run.acc.n,
                               photons_per_pass=s.settings.photons, spp=s.settings.spp,
-                              seconds=run.seconds, estimator=run.spec, seed=s.seed)
+                              seconds=run.seconds, estimator=run.spec, seed=s.seed,
+                              sum_var=run.acc.sum_variance)
         buf = io.BytesIO()
         np.savez_compressed(buf, **npz_payload(res, initial_radius(s.estimator, s.scene,
                                                                    s.settings), s.scene))
