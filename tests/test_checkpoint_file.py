@@ -123,3 +123,58 @@ def test_checkpoint_keeps_the_pass_moments_exactly(tmp_path):
     with pytest.raises(ck.CheckpointError, match="without its m4") as e:
         ck.load_checkpoint(tmp_path)
     assert "\n" not in str(e.value) and str(path) in str(e.value)
+
+
+def _rewrite(path, drop=(), meta_pop=(), **replace):
+    """Rewrite a checkpoint file without the arrays ``drop`` and meta keys ``meta_pop``."""
+    with np.load(path) as d:
+        data = {k: d[k] for k in d.files if k not in drop}
+    meta = json.loads(str(data["meta"]))
+    for k in meta_pop:
+        meta.pop(k)
+    data.update(replace, meta=np.str_(json.dumps(meta)))
+    with open(path, "wb") as f:
+        np.savez(f, **data)
+
+
+def test_checkpoint_keeps_the_image_sum_moment(tmp_path):
+    """``sum_m2`` round-trips exactly; a checkpoint written before it was kept (and format 1)
+    loads with it unknown, and a file that claims it but lacks it or holds a bad one is
+    refused in one line."""
+    xs = np.random.default_rng(6).lognormal(size=(7, 3, 4, 3))
+    acc = Welford.empty((3, 4, 3))
+    for x in xs[:5]:
+        acc.add(x)
+    ck.save_checkpoint(tmp_path, acc, {"seed": 1}, seconds=1.0, version="x")
+    got = ck.load_checkpoint(tmp_path)
+    assert got.meta["sums"] and got.meta["format"] == 2
+    np.testing.assert_array_equal(got.accumulator.sum_m2, acc.sum_m2)
+    for x in xs[5:]:  # resumed passes continue it exactly
+        acc.add(x)
+        got.accumulator.add(x)
+    np.testing.assert_array_equal(got.accumulator.sum_m2, acc.sum_m2)
+    np.testing.assert_allclose(acc.sum_variance, np.var(xs.sum(axis=(1, 2)), axis=0, ddof=1),
+                               rtol=1e-10)
+    path = tmp_path / "checkpoint.npz"
+    # Written before it was kept: format 2 without the array or the flag.
+    ck.save_checkpoint(tmp_path, acc, {"seed": 1}, seconds=1.0, version="x")
+    _rewrite(path, drop=("sum_m2",), meta_pop=("sums",))
+    old = ck.load_checkpoint(tmp_path).accumulator
+    assert old.sum_m2 is None and old.sum_variance is None and old.has_tails and old.n == 7
+    np.testing.assert_array_equal(old.m2, acc.m2)
+    # Saved again unknown, it stays unknown (no array, the flag off).
+    ck.save_checkpoint(tmp_path, old, {"seed": 1}, seconds=1.0, version="x")
+    with np.load(path) as d:
+        assert "sum_m2" not in d.files
+    assert ck.load_checkpoint(tmp_path).accumulator.sum_m2 is None
+    ck.save_checkpoint(tmp_path, acc, {"seed": 1}, seconds=1.0, version="x")
+    format_1(tmp_path)
+    assert ck.load_checkpoint(tmp_path).accumulator.sum_m2 is None
+    for bad, needle in ((dict(drop=("sum_m2",)), "without its sum_m2"),
+                        (dict(sum_m2=np.zeros(4)), "inconsistent accumulator (sum_m2"),
+                        (dict(sum_m2=np.full(3, np.inf)), "non-finite")):
+        ck.save_checkpoint(tmp_path, acc, {"seed": 1}, seconds=1.0, version="x")
+        _rewrite(path, **bad)
+        with pytest.raises(ck.CheckpointError) as e:
+            ck.load_checkpoint(tmp_path)
+        assert needle in str(e.value) and "\n" not in str(e.value) and str(path) in str(e.value)

@@ -124,15 +124,15 @@ def test_resume_into_another_checkpoint_directory(work, capsys):
 
 
 def test_resume_keeps_the_pass_moments_bit_identical(work, capsys):
-    """The output .npz carries m2, m3, m4 and the peak; a resumed render gives the same bits
-    as an uninterrupted one, and one resumed from a format-1 checkpoint the same image (its
-    moments unknown, so its .npz has none)."""
+    """The output .npz carries m2, m3, m4, the peak and the image sum's variance; a resumed
+    render gives the same bits as an uninterrupted one, and one resumed from a format-1
+    checkpoint the same image (its moments unknown, so its .npz has none)."""
     assert run(capsys, *FAST, "--passes", "4", "--out", "full.npz")[0] == 0
     assert run(capsys, *FAST, "--passes", "2", "--out", "a.npz", "--checkpoint", "ck")[0] == 0
     assert run(capsys, *FAST, "--passes", "4", "--out", "b.npz", "--resume", "ck")[0] == 0
     full, b = load(work / "full.npz"), load(work / "b.npz")
     same_image(b, full)
-    for k in ("m2", "m3", "m4", "peak"):
+    for k in ("m2", "m3", "m4", "peak", "sum_var"):
         assert full[k].dtype == np.float64
         np.testing.assert_array_equal(b[k], full[k])
     assert run(capsys, *FAST, "--passes", "2", "--out", "a.npz", "--checkpoint", "old")[0] == 0
@@ -141,7 +141,7 @@ def test_resume_keeps_the_pass_moments_bit_identical(work, capsys):
     assert code == 0, err
     c = load(work / "c.npz")
     same_image(c, full)
-    assert "m3" not in c
+    assert "m3" not in c and "sum_var" not in c
 
 
 def test_resume_refuses_a_reference_checkpoint_of_the_old_sampler(work, capsys):

@@ -68,6 +68,23 @@ def test_render_writes_documented_npz(two_passes):
     assert not [p for p in tmp.iterdir() if ".tmp" in p.name]  # no temporary files left
 
 
+def test_render_npz_has_the_variance_of_the_pass_sums(two_passes):
+    """``sum_var``: the sample variance of the passes' image sums (per channel, float64),
+    recomputed here from the two passes themselves; for planes it is not the sum of the
+    per-pixel variances (one photon's plane reaches many pixels of its pass)."""
+    from psurf_core.estimators import parse_estimator
+    from psurf_core.render import RenderSettings, render_pass
+    from psurf_core.scene_io import load_scene
+
+    _, d = two_passes
+    scene = load_scene(SCENE)
+    est, st = parse_estimator("planes", scene), RenderSettings(photons=500)
+    sums = [render_pass(scene, est, i, 1, st).sum(axis=(0, 1)) for i in range(2)]
+    assert d["sum_var"].shape == (3,) and d["sum_var"].dtype == np.float64
+    np.testing.assert_allclose(d["sum_var"], np.var(sums, axis=0, ddof=1), rtol=1e-9)
+    assert np.all(d["sum_var"] > 2 * d["var"].astype(np.float64).sum(axis=(0, 1)))
+
+
 def images_read(path: Path) -> np.ndarray:
     import imageio.v3 as iio
 
