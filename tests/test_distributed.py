@@ -62,6 +62,7 @@ def _same(a, b):
     assert np.array_equal(a.var, b.var)
     assert a.accumulator.n == b.accumulator.n and np.array_equal(a.accumulator.m2,
                                                                  b.accumulator.m2)
+    assert a.sum_var is not None and np.array_equal(a.sum_var, b.sum_var)  # the image sums'
 
 
 @pytest.mark.parametrize("spec", ["planes", "beams"])

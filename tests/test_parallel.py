@@ -33,6 +33,7 @@ def _same(a, b):
     assert a.passes == b.passes
     assert np.array_equal(a.mean, b.mean)
     assert np.array_equal(a.var, b.var)
+    assert a.sum_var is not None and np.array_equal(a.sum_var, b.sum_var)  # the image sums'
 
 
 @pytest.mark.parametrize("spec", ["planes", "paper-multi"])
