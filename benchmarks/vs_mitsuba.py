@@ -42,17 +42,15 @@ the reference (``psurf_core.metrics.relmse``); ``var``, the mean per-pixel varia
 image (per-pass variance / passes); ``relvar``, the relMSE that this variance alone explains;
 ``floor``, the reference's own relVar (in every score); ``sum_z``, the z-score of the image sum
 against the reference's (a bias or a convention mismatch shows as ``|sum_z| >> 3``; only with
-at least :data:`MIN_PASSES_FOR_Z` passes, the largest of the channels in the table), its
-standard error from the per-pass image sums both renders store (``sum_z_method``:
-``"per-pass sums"``) or, for a file without them, from the per-pixel variances as if the
-pixels were independent (``"independent pixels"``, starred in the table: far too small for
-photon estimators, whose pixels are correlated within a pass; see :func:`score`). The ratios
-are psurf / Mitsuba: ``relmse_ratio`` as measured; ``relmse_above_floor_ratio`` of
-``relmse - floor`` (each score's expected value is its own relMSE against the truth plus the
-floor, so the plain ratio is pulled towards 1 when the floor is not small; ``None`` when a score
-is not above the floor: the reference is too short to rank that case); ``var_ratio`` of
-``var``; and ``relvar_ratio_time_normalized`` with each relVar times its measured seconds
-(Mitsuba runs for psurf's measured seconds, so this corrects only rounding to whole passes).
+at least :data:`MIN_PASSES_FOR_Z` passes, the largest of the channels in the table; its
+standard error and ``sum_z_method``: :func:`sum_standard_error`, starred in the table when
+from per-pixel variances). The ratios are psurf / Mitsuba: ``relmse_ratio`` as measured;
+``relmse_above_floor_ratio`` of ``relmse - floor`` (each score's expected value is its own
+relMSE against the truth plus the floor, so the plain ratio is pulled towards 1 when the floor
+is not small; ``None`` when a score is not above the floor: the reference is too short to rank
+that case); ``var_ratio`` of ``var``; and ``relvar_ratio_time_normalized`` with each relVar
+times its measured seconds (Mitsuba runs for psurf's measured seconds, so this corrects only
+rounding to whole passes).
 
 Writes ``--out`` (JSON: every number, the command, date, commit, load averages) and ``--md``
 (the Markdown table). Nothing here is a test: the machine's load changes every number.
@@ -135,24 +133,12 @@ PER_PASS_SUMS, INDEPENDENT_PIXELS = "per-pass sums", "independent pixels"
 def sum_standard_error(img: dict, ref: dict) -> tuple[np.ndarray, str]:
     """(3,) standard error of ``sum(img mean) - sum(ref mean)`` per channel, and its method.
 
-    Parameters
-    ----------
-    img : dict
-        ``mean``, ``var`` (H, W, 3), ``passes``, optionally ``sum_var`` (3,): the per-pass
-        variance of the image sum (``app.py render``, ``mitsuba_scene``).
-    ref : dict
-        ``var_mean`` (H, W, 3), optionally ``sum_var_mean`` (3,): the variance of its mean
-        image's sum (:func:`mitsuba_renders.reference`).
-
-    Returns
-    -------
-    se : (3,) float64
-    method : str
-        :data:`PER_PASS_SUMS` when both carry their sums' variances: ``sqrt(sum_var / passes
-        + sum_var_mean)``, right whatever the correlation between the pixels of a pass.
-        Otherwise :data:`INDEPENDENT_PIXELS`: the per-pixel variances of the means summed,
-        right for a path tracer's independent pixels but far too small for photon
-        estimators (one photon's surface reaches many pixels of its pass).
+    :data:`PER_PASS_SUMS` when ``img`` has ``sum_var`` (3,), the per-pass variance of its
+    image sum, and ``ref`` its ``sum_var_mean`` (3,): ``sqrt(sum_var / passes +
+    sum_var_mean)``, right whatever the correlation between the pixels of a pass. Otherwise
+    :data:`INDEPENDENT_PIXELS`: the per-pixel variances of the means (``var / passes``,
+    ``var_mean``, (H, W, 3)) summed, too small for photon estimators (one photon's surface
+    reaches many pixels of its pass).
     """
     n = max(int(img["passes"]), 1)
     if img.get("sum_var") is not None and ref.get("sum_var_mean") is not None:

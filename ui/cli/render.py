@@ -216,9 +216,7 @@ def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict
     from psurf_core.reliability import npz_fields
 
     data.update(npz_fields(getattr(result, "accumulator", None)))
-    # The image sum's own per-pass variance: the pixels of a photon pass are correlated, so
-    # summing ``var`` over the pixels understates it (benchmarks/vs_mitsuba.py's sum z).
-    sum_var = getattr(result, "sum_var", None)
+    sum_var = getattr(result, "sum_var", None)  # not var summed: photon passes' pixels correlate
     if sum_var is not None:
         data["sum_var"] = np.asarray(sum_var, dtype=np.float64)
     data.update(extra or {})
