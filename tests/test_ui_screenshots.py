@@ -102,6 +102,7 @@ def _state(case: str):
 def pictures():
     """Every stage (and mode) of every case at every size, composed into one plotter per size
     (as the window recomposes: updates and rebuilds)."""
+    from ui.views._vtk import rendered_image
     from ui.views.panel_modes import MODES
     from ui.views.window import compose, make_plotter
 
@@ -116,16 +117,13 @@ def pictures():
                     for stage in STAGES:
                         state.stepper.go(stage)
                         compose(plotter, state)
-                        plotter.render()
-                        out[f"{tag}_{stage}"] = plotter.screenshot(None, return_img=True)
+                        out[f"{tag}_{stage}"] = rendered_image(plotter)
                     if c["modes"]:
                         state.stepper.go("evaluate")
                         for mode in MODES:
                             state.mode = mode
                             compose(plotter, state)
-                            plotter.render()
-                            out[f"{tag}_mode_{mode}"] = plotter.screenshot(None,
-                                                                           return_img=True)
+                            out[f"{tag}_mode_{mode}"] = rendered_image(plotter)
                         state.mode = "render"
                 finally:
                     plotter.close()
@@ -197,6 +195,42 @@ def test_stages_differ(pictures):
     imgs = [np.asarray(pictures[f"point_1024x768_{s}"])[..., :3] for s in STAGES]
     for a, b in zip(imgs, imgs[1:], strict=False):
         assert structural_similarity(a, b, channel_axis=2, data_range=255) < 0.99
+
+
+def test_a_picture_shows_the_change_made_since_the_last_render():
+    """pyvista's off-screen ``screenshot`` renders only before the first render and then
+    returns the last picture: the pictures compared here are taken by
+    :func:`ui.views._vtk.rendered_image`, which renders first (also while rendering is held,
+    as the views hold it while adding actors). A change shows, as a fresh plotter draws it."""
+    from ui.views._vtk import rendered_image
+
+    def sphere(color):
+        p = pv.Plotter(off_screen=True, window_size=(200, 150))
+        return p, p.add_mesh(pv.Sphere(), color=color)
+
+    def fresh(color):
+        p, _ = sphere(color)
+        try:
+            return rendered_image(p)
+        finally:
+            p.close()
+
+    p, actor = sphere("red")
+    try:
+        red = rendered_image(p)  # the first render
+        actor.prop.color = "blue"
+        blue = rendered_image(p)
+        p.suppress_rendering = True
+        actor.prop.color = "green"
+        green = rendered_image(p)
+        assert p.suppress_rendering  # held again afterwards
+    finally:
+        p.close()
+    for before, after, color in ((red, blue, "blue"), (blue, green, "green")):
+        assert after.shape == before.shape == (150, 200, 3) and after.dtype == np.uint8
+        assert np.abs(after.astype(int) - before).mean() > 5, color  # not the last picture
+        ssim = structural_similarity(fresh(color), after, channel_axis=2, data_range=255)
+        assert ssim >= SSIM_MIN, (color, ssim)
 
 
 # --------------------------------------------------------------------------- CLI errors

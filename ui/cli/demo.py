@@ -399,6 +399,7 @@ def _payload(run, scene, args) -> dict:
 
 def _stages(window, scene_path, specs, prog, reference, args) -> list:
     """The window's five stages (``app_<stage>.png``) with the comparison's own panels."""
+    from ui.views._vtk import rendered_image
     from ui.views.image_panels import PanelView
     from ui.views.stepper import STAGES
 
@@ -413,8 +414,7 @@ def _stages(window, scene_path, specs, prog, reference, args) -> list:
         for stage in STAGES:
             state.stepper.go(stage)
             window.compose(plotter, state)
-            plotter.render()  # screenshot() alone may return the last rendered image
-            img = plotter.screenshot(None, return_img=True)
+            img = rendered_image(plotter)
             path = os.path.join(args.out, f"app_{stage}.png")
             from psurf_core import images as im
 

@@ -16,7 +16,7 @@ import numpy as np
 from psurf_core import images as im
 
 from . import scene_view
-from ._vtk import pv
+from ._vtk import pv, rendered_image
 from .panel_modes import (  # noqa: F401 - the modes' names are part of this module's API
     MEAN_VARIANCE_BAR,
     MODE_HELP,
@@ -154,9 +154,7 @@ class FigureMaker:
             add_text(self.plotter, title, 0.5, 0.9, FONT_SMALL, size_px=size, align="center",
                      name="figure-title")
         self.view.draw(self.plotter, cells, source, mode, pixel_xy, **kw)
-        self.plotter.render()  # screenshot() alone may return the last rendered image
-        # a copy: the screenshot buffer may be reused by the next frame
-        return np.array(self.plotter.screenshot(None, return_img=True)[..., :3])
+        return rendered_image(self.plotter)
 
     def close(self) -> None:
         self.plotter.close()

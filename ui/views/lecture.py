@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import scene_view
-from ._vtk import pv, vtkRenderWindow
+from ._vtk import pv, rendered_image, vtkRenderWindow
 from .lecture_states import ROOT, STATES, LectureState, check_index, load_state_scene
 from .stepper import Stepper
 from .window import ViewState, compose, make_plotter
@@ -125,7 +125,7 @@ def lecture_screenshot(state_index: int, out: str, size=DEFAULT_SIZE) -> np.ndar
     plotter = make_plotter(tuple(size), off_screen=True)
     try:
         compose_state(plotter, state, view, state_index)
-        img = plotter.screenshot(None, return_img=True)
+        img = rendered_image(plotter)
     finally:
         plotter.close()
     folder = os.path.dirname(os.path.abspath(out))

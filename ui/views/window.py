@@ -40,6 +40,7 @@ from psurf_core.render import RenderSettings, render
 from psurf_core.scene_io import load_scene
 
 from . import controls, image_panels, primitives_view
+from ._vtk import rendered_image
 from .compose import (  # noqa: F401 - the window's composition, re-exported for its users
     CELL_3D,
     CELL_PANEL,
@@ -391,7 +392,7 @@ def screenshot(scene_path: str, stage: str, pixel_xy, estimator: str = "planes",
     plotter = make_plotter(size, off_screen=True)
     try:
         compose(plotter, state)
-        img = plotter.screenshot(None, return_img=True)
+        img = rendered_image(plotter)
     finally:
         plotter.close()
         state.prog.close()

@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 
 from ui.views import scene_view
-from ui.views._vtk import pv
+from ui.views._vtk import pv, rendered_image
 
 #: The 3D view's plotter size before the browser reports its own (the remote view then
 #: resizes the render window to the element's size).
@@ -84,8 +84,6 @@ async def deliver_frame(server, plotter: pv.Plotter) -> None:
 
 
 def screenshot(plotter: pv.Plotter):
-    """(H, W, 3) uint8 of what ``plotter`` shows now (rendered first)."""
-    plotter.render()
-    import numpy as np
-
-    return np.array(plotter.screenshot(None, return_img=True)[..., :3])
+    """(H, W, 3) uint8 of what ``plotter`` shows now, rendered first (the views' one way to
+    take a picture, :func:`ui.views._vtk.rendered_image`)."""
+    return rendered_image(plotter)
