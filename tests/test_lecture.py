@@ -46,8 +46,15 @@ def _baseline(i: int) -> Path:
     return BASELINES / f"lecture_{i + 1:02d}.png"
 
 
-@pytest.mark.parametrize("index", range(len(STATES)),
-                         ids=[f"{i + 1:02d}" for i in range(len(STATES))])
+# States 10 and 14 render the longest MIS sets (~30 s each on a fresh clone): make test-slow;
+# 09 and 11 keep the same panels in make test.
+_SLOW_STATES = {10, 14}
+
+
+@pytest.mark.parametrize("index", [
+    pytest.param(i, id=f"{i + 1:02d}",
+                 marks=[pytest.mark.slow] if i + 1 in _SLOW_STATES else [])
+    for i in range(len(STATES))])
 def test_state_matches_baseline(index, tmp_path):
     from ui.views.lecture import lecture_screenshot
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scene_support import scene_params
 
 from psurf_core.camera import camera_rays
 from psurf_core.estimators import parse_estimator
@@ -81,7 +82,7 @@ def test_every_compiled_family_is_covered():
 
 
 @pytest.mark.parametrize("pinhole", [True, False], ids=["pinhole", "per-ray-origin"])
-@pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
+@pytest.mark.parametrize("path", scene_params())
 def test_walker_equals_stages(path, pinhole, monkeypatch):
     scene, blockers, rays, paths = _setup(path, pinhole)
     ctx = PassContext(scene, blockers, 0.0, 0, 1500)  # a small budget: several chunks
