@@ -10,14 +10,7 @@ import pytest
 pv = pytest.importorskip("pyvista")
 pv.OFF_SCREEN = True
 
-from window_frames_support import POINT, drawn, settle_by_ticks, window_app  # noqa: E402
-
-
-@pytest.fixture()
-def app(tmp_path, monkeypatch):
-    """The window off-screen (:func:`window_frames_support.window_app`)."""
-    with window_app(tmp_path, monkeypatch) as a:
-        yield a
+from window_frames_support import POINT, drawn, settle_by_ticks  # noqa: E402
 
 
 @pytest.mark.parametrize("stage", ["create", "intersect"])

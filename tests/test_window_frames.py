@@ -33,15 +33,7 @@ from window_frames_support import (  # noqa: E402
     drawn,
     last_frame,
     run_under_xvfb,
-    window_app,
 )
-
-
-@pytest.fixture()
-def app(tmp_path, monkeypatch):
-    """The window off-screen (:func:`window_frames_support.window_app`)."""
-    with window_app(tmp_path, monkeypatch) as a:
-        yield a
 
 
 def test_a_new_pass_draws_the_panels_only_and_the_picture_of_a_full_redraw(app):

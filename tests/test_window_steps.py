@@ -11,14 +11,7 @@ import pytest
 pv = pytest.importorskip("pyvista")
 pv.OFF_SCREEN = True
 
-from window_frames_support import drawn, last_frame, settle_by_ticks, window_app  # noqa: E402
-
-
-@pytest.fixture()
-def app(tmp_path, monkeypatch):
-    """The window off-screen (:func:`window_frames_support.window_app`)."""
-    with window_app(tmp_path, monkeypatch) as a:
-        yield a
+from window_frames_support import drawn, last_frame, settle_by_ticks  # noqa: E402
 
 
 def test_in_the_window_a_key_draws_at_once_and_the_3d_view_over_the_next_ticks(app, monkeypatch):

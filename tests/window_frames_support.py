@@ -1,7 +1,8 @@
 """What the window's frame tests (``test_window_frames.py``, ``test_window_steps.py``,
 ``test_window_baked_light.py``) share: the window off-screen with passes merged in this
 process, a count of the renderers each render draws, its pixels, ticks until the 3D view is
-complete, and a window opened under a virtual X server."""
+complete, and a window opened under a virtual X server. The tests take the window as the
+``app`` fixture (``conftest.py``)."""
 
 from __future__ import annotations
 
@@ -36,7 +37,7 @@ p = make_plotter((640, 480))
 @contextlib.contextmanager
 def window_app(tmp_path, monkeypatch):
     """The window off-screen, ``planes`` beside an MIS set, passes rendered in this process
-    (the body of each test module's ``app`` fixture)."""
+    (the body of the ``app`` fixture, ``conftest.py``)."""
     from ui.views.interactive import App
     from ui.views.window import attach_progressive, build_state, make_plotter
 
