@@ -325,7 +325,7 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         k, nn = _steps(m, threads, args, (idx, x, w),
                        (ws.near_photon, ws.near_a, ws.near_b, ws.near_inside))
         if nn and shadow.shade(nn, ws.near_a, ws.near_b, ws.near_inside, rows, test_all, ok,
-                               ws.near_photon, ws.verdict):
+                               ws.near_photon, ws.verdict, threads):
             shadow.resolve(ws.near_photon[:nn], ws.near_a[:nn], ws.near_b[:nn],
                            ws.near_inside[:nn], blockers, ok)
         rec_off.append(off + m)

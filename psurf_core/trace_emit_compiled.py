@@ -11,7 +11,7 @@ import numpy as np
 from . import trace_buffers as buffers
 from . import trace_emit as ref_emit
 from .kernels.jit import kernel, twin
-from .kernels.threads import in_pieces
+from .kernels.threads import in_pieces, thread_count
 from .scene import AreaLight, MeshLight, PointLight
 
 
@@ -244,6 +244,9 @@ def emit(scene, rng, n: int, out: dict | None = None) -> dict:
     np.take(pmf, light, out=e["light_pmf"])
     fields = tuple(e[k] for k in ("x0", "w1", "light_normal", "beta", "light_uv", "tri"))
     one = len(scene.lights) == 1  # every photon from light 0: no rows to select
+    # numpy's float64 sin/cos are scalar libm calls here (no AVX-512): most of emission's
+    # time; elementwise, so the values do not depend on the thread count.
+    threads = thread_count()
     for li, (lt, args) in enumerate(zip(scene.lights, per, strict=True)):
         rows = np.empty(0, dtype=np.intp) if one else np.flatnonzero(light == li)
         m = n if one else rows.size
@@ -251,14 +254,15 @@ def emit(scene, rng, n: int, out: dict | None = None) -> dict:
             continue
         if isinstance(lt, PointLight):
             r = rng.random(2 * m)
-            emit_point(rows, one, r[:m], *azimuth(r[m:]), *args, *fields)
+            emit_point(rows, one, r[:m], *azimuth(r[m:], threads=threads), *args, *fields)
         elif isinstance(lt, AreaLight):
             r = rng.random(4 * m)
-            emit_area(rows, one, r[: 2 * m].reshape(m, 2), r[2 * m : 3 * m], *azimuth(r[3 * m :]),
-                      *args, *fields)
+            emit_area(rows, one, r[: 2 * m].reshape(m, 2), r[2 * m : 3 * m],
+                      *azimuth(r[3 * m :], threads=threads), *args, *fields)
         else:
             k = _discrete(args[0], rng, m, np.empty(m, dtype=np.intp))
             r = rng.random(4 * m)
-            emit_mesh(rows, one, k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], *azimuth(r[3 * m :]),
+            emit_mesh(rows, one, k, r[:m], r[m : 2 * m], r[2 * m : 3 * m],
+                      *azimuth(r[3 * m :], threads=threads),
                       *args[1:], *fields)
     return e

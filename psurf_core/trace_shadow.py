@@ -38,6 +38,7 @@ from .constants import BOUNDS_PAD, PARALLEL_EPS, SHADOW_EPS
 from .geometry import Blockers
 from .kernels.jit import inline, kernel
 from .kernels.shadow import BLOCKED, BOX, CLEAR, DEFER, QUAD, SPHERE, BlockerRow, blocker_table
+from .kernels.threads import in_pieces
 from .records import flat, load
 
 #: Unit roundoff of float64.
@@ -261,8 +262,7 @@ def blocker_hit(a, d, ed, t_max, et_max, bl):  # pragma: no cover - compiled
     return MAYBE  # triangles: Embree's float32 hits, then the numpy test
 
 
-@kernel
-def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict):  # pragma: no cover - compiled
+def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict, threads: int = 1) -> bool:
     """What ``Blockers.occluded`` answers for each near segment ``a[i] -> b[i]`` (one whose
     box meets a blocker's padded box): whether ``occluded`` tests it exactly (it meets a
     non-planar blocker's box, or crosses a planar one's plane: :func:`crosses_plane`), then
@@ -286,16 +286,37 @@ def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict):  # pragma: no 
     photon : (>= nn,) int64
     verdict : (>= nn,) int64
         ``CLEAR``, ``BLOCKED`` or ``DEFER``, written.
+    threads : int
+        Threads to run ranges of segments on (each segment is decided from its own row and
+        writes its own ``verdict`` and photon's ``ok``: the result does not depend on it).
 
     Returns
     -------
     bool
         Some segment is ``DEFER``.
     """
+    unsure = []
+
+    def part(i0, i1):
+        if shade_range(i0, i1, a, b, inside, rows, test_all, ok, photon, verdict):
+            unsure.append(True)
+
+    in_pieces(part, nn, threads, SHADE_MIN)
+    return bool(unsure)
+
+
+#: Near segments per thread below which :func:`shade` runs on one thread.
+SHADE_MIN = 4096
+
+
+@kernel(nogil=True)
+def shade_range(i0, i1, a, b, inside, rows, test_all, ok, photon,
+                verdict):  # pragma: no cover - compiled
+    """:func:`shade` for the segments ``i0 .. i1 - 1``; returns whether one is ``DEFER``."""
     unsure = False
     # Loops over the blocker rows live here, not in the inlined tests: numba keeps a
     # reference count per segment for an array handed to an inlined loop.
-    for i in range(nn):
+    for i in range(i0, i1):
         ai, bi = (a[i, 0], a[i, 1], a[i, 2]), (b[i, 0], b[i, 1], b[i, 2])
         v0, v1, v2 = bi[0] - ai[0], bi[1] - ai[1], bi[2] - ai[2]
         ln = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)

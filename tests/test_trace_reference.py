@@ -23,6 +23,7 @@ from psurf_core import (
     trace_compiled,  # noqa: F401 (registers the twins of trace.py)
     trace_emit,
     trace_emit_compiled,
+    trace_shadow,
 )
 from psurf_core.constants import BOX_EPS
 from psurf_core.geometry import blockers_of, inside_box
@@ -106,13 +107,21 @@ def test_threads_change_nothing(monkeypatch, name):
     monkeypatch.setattr(trace_compiled, "ASSEMBLE_MIN", 16)
     monkeypatch.setattr(trace_compiled, "STEP_MIN", 16)
     monkeypatch.setattr(trace_emit_compiled, "ELEMENTWISE_MIN", 16)
-    pieces = []
-    real = trace_compiled.in_pieces
-    monkeypatch.setattr(trace_compiled, "in_pieces",
-                        lambda fn, n, th, lo=1: (pieces.append((n, th, lo)),
-                                                 real(fn, n, th, lo)))
+    monkeypatch.setattr(trace_emit_compiled, "thread_count", lambda: 2)  # emission's azimuth
+    monkeypatch.setattr(trace_shadow, "SHADE_MIN", 16)
+    pieces, cut = [], {}
+    for mod in (trace_compiled, trace_emit_compiled, trace_shadow):
+        def spy(fn, n, th, lo=1, real=mod.in_pieces, key=mod.__name__):
+            cut[key] = cut.get(key, False) or (th == 2 and n >= 2 * lo)
+            pieces.append((n, th, lo))
+            return real(fn, n, th, lo)
+
+        monkeypatch.setattr(mod, "in_pieces", spy)
     _assert_same(name, _both(sc, 3000, 5))
-    assert any(th == 2 and n >= 2 * lo for n, th, lo in pieces), pieces
+    # The depth steps' elementwise parts and assemble, emission's azimuth and the shadow
+    # verdicts were each cut into pieces on two threads.
+    assert cut == dict.fromkeys((trace_compiled.__name__, trace_emit_compiled.__name__,
+                                 trace_shadow.__name__), True), pieces
 
 
 def test_reused_outputs(monkeypatch):

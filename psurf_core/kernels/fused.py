@@ -32,7 +32,7 @@ from ..records import dtype_of, flat, widths
 from ..scene import medium_row
 from ..techniques.base import Hits
 from .buffers import HitBuffers
-from .jit import ctrl_c_kept
+from .jit import ctrl_c_kept, kernel
 from .mis import member_params, weight_of
 from .rays import ray_table
 from .shadow import BLOCKED, DEFER, blocker_table
@@ -176,9 +176,7 @@ class _Run:
             return
         spans = tuple(np.ascontiguousarray(a, np.int64) for a in spans)
         s_prim, s_row, s_c0, s_c1 = spans
-        width = int(self.ctx.scene.camera.width)
-        base = s_row * width
-        cand = self.cs[base + s_c1] - self.cs[base + s_c0]  # candidate pairs per span
+        cand = span_candidates(self.cs, s_row, s_c0, s_c1, int(self.ctx.scene.camera.width))
         # Chunks as binning's (pixels x the most rays in a pixel, within max_pairs).
         per_pix = max(int(np.diff(self.cs).max()), 1)
         bounds = _chunk_bounds((s_c1 - s_c0) * per_pix, self.ctx.max_pairs)
@@ -268,6 +266,18 @@ class _Run:
             if idx.size:
                 ok[idx] = ~self.ctx.blockers.occluded(a[idx], b[idx])
         val[rows[~ok]] = 0.0
+
+
+@kernel
+def span_candidates(cs, s_row, s_c0, s_c1, width):  # pragma: no cover - compiled
+    """(S,) int64: candidate ray-primitive pairs of each span, the rays of its pixels
+    ``cs[row * width + c1] - cs[row * width + c0]`` (numpy's two gathers took ~1.8 ms of a
+    30 ms ``planes`` pass: 155k spans at 64x48)."""
+    out = np.empty(s_row.shape[0], np.int64)
+    for i in range(s_row.shape[0]):
+        b = s_row[i] * width
+        out[i] = cs[b + s_c1[i]] - cs[b + s_c0[i]]
+    return out
 
 
 #: Full rows: ray, prim (int64), s; [the hit record]; value (3), weight, statuses (3 int8).
