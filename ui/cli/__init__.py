@@ -5,7 +5,9 @@ module                 owns
 =====================  ==================================================================
 :mod:`.common`         one-line errors (``CliError``), flag types, atomic output writes,
                        progress bar, scene/estimator/scatter checks (imports no command)
-:mod:`.render`         ``render``: its flags, defaults and the ``.npz`` it writes
+:mod:`.render`         ``render``: its flags, defaults and input checks
+:mod:`.render_run`     ``render``'s run: passes, checkpoints, one-line failures, outputs
+:mod:`.render_npz`     the ``.npz`` ``render`` writes (also the web page's download)
 :mod:`.checkpoint`     ``render --checkpoint/--resume``: snapshots, resume checks, Ctrl-C
 :mod:`.parallel`       ``--dask``/``--workers``/``--jobs`` (render, compare)
 :mod:`.compare`        ``compare``: the equal-time study

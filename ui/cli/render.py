@@ -1,8 +1,10 @@
 """``python app.py render``: render a scene progressively to .npz (and .png/.exr).
 
-The command (:func:`add_render_parser`, :func:`cmd_render`), its defaults, and the ``.npz`` it
-writes (:func:`npz_payload`: mean, variance, counts, provenance and the scene file's SHA-256,
-also used by ``demo``). The flag types and helpers it shares with the other commands are
+The command: its flags and defaults (:func:`add_render_parser`) and the checks of its inputs
+(:func:`cmd_render`). The run itself, once every input is valid (render, checkpoint, failures,
+outputs), is :mod:`ui.cli.render_run`'s; the ``.npz`` it writes (:func:`npz_payload`: mean,
+variance, counts, provenance and the scene file's SHA-256) :mod:`ui.cli.render_npz`'s, both
+re-exported here. The flag types and helpers it shares with the other commands are
 :mod:`ui.cli.common`'s, the checkpoints :mod:`ui.cli.checkpoint`'s and
 ``--dask``/``--workers``/``--jobs`` :mod:`ui.cli.parallel`'s. No pyvista here: only argparse,
 numpy and :mod:`psurf_core`. ``app.py`` wires it in with::
@@ -33,27 +35,17 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import textwrap
 
-import numpy as np
-
 from .checkpoint import (
-    Checkpointer,
-    CheckpointWriteError,
     checkpoint_dir_ok,
     load_resume,
     lock_checkpoint_dir,
-    report_interrupt,
     same_dir,
-    save_on_failure,
     session_budget,
-    write_checkpoint,
 )
 from .common import (
-    PROG,
     CliError,
-    OutputWriteError,
     add_resolution_flag,
     check_output,
     nonempty_path,
@@ -61,29 +53,24 @@ from .common import (
     nonneg_int,
     note,
     note_scatter_range,
-    npz_writer,
     parse_estimator_flag,
-    plural,
-    png_writer,
     positive_float,
     positive_int,
-    progress,
     scatter_int,
     shrink,
-    sigint_deferred,
     with_resolution,
     with_scatter,
-    write_all,
 )
 from .limits import check_render_sizes, load_scene_within
-from .parallel import WorkersLost, add_dask_flags, maybe_distributed
+from .parallel import add_dask_flags
+from .render_npz import initial_radius, npz_payload  # noqa: F401 - npz_payload re-exported
+from .render_run import DEFAULT_CHECKPOINT_EVERY, run_session, written_list  # noqa: F401
 
 #: Defaults of ``render`` (a 64x48 scene shows a recognisable image in a few seconds).
 DEFAULT_PHOTONS = 4000
 DEFAULT_SPP = 1
 DEFAULT_PASSES = 8
 DEFAULT_SEED = 0
-DEFAULT_CHECKPOINT_EVERY = 60.0
 
 
 # --------------------------------------------------------------------------- parser
@@ -174,55 +161,6 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
     return r
 
 
-# --------------------------------------------------------------------------- output
-
-
-def initial_radius(estimator, scene, settings) -> float:
-    """The largest pass-0 kernel radius of the estimator's techniques (0.0: no kernel)."""
-    from psurf_core.render import kernel_radius
-
-    radii = [kernel_radius(t, scene, settings, 0) for t in estimator.techniques
-             if t.kernel_dim > 0]
-    return float(max(radii)) if radii else 0.0
-
-
-def npz_payload(result, radius: float, scene, extra: dict | None = None) -> dict:
-    """The arrays of a render ``.npz`` (``mean``, ``var``, counts, ``radius``, provenance;
-    ``sum_var``, the (3,) per-pass variance of the image sum, when ``result`` knows it),
-    updated with ``extra``."""
-    from psurf_core import __version__
-
-    data = {
-        "mean": result.mean.astype(np.float32),
-        "var": result.var.astype(np.float32),
-        "passes": np.int64(result.passes),
-        "photons_per_pass": np.int64(result.photons_per_pass),
-        "spp": np.int64(result.spp),
-        "seconds": np.float64(result.seconds),
-        "estimator": np.str_(result.estimator),
-        "seed": np.int64(result.seed),
-        "radius": np.float64(radius),
-        "version": np.str_(__version__),
-        "argv": np.array(sys.argv, dtype=str),
-        "scene": np.str_(scene.path),
-        "min_scatter": np.int64(scene.min_scatter),
-        "max_scatter": np.int64(scene.max_scatter),
-    }
-    if os.path.isfile(scene.path):  # which scene file, exactly (a bundled reference is checked)
-        from psurf_core.checkpoint import file_sha256
-
-        data["scene_sha256"] = np.str_(file_sha256(scene.path))
-    # Pass moments for the reliability check of compare --reference (psurf_core.reliability).
-    from psurf_core.reliability import npz_fields
-
-    data.update(npz_fields(getattr(result, "accumulator", None)))
-    sum_var = getattr(result, "sum_var", None)  # not var summed: photon passes' pixels correlate
-    if sum_var is not None:
-        data["sum_var"] = np.asarray(sum_var, dtype=np.float64)
-    data.update(extra or {})
-    return data
-
-
 # --------------------------------------------------------------------------- render
 
 
@@ -283,132 +221,8 @@ def cmd_render(args) -> int:
         os.makedirs(ck_dir, exist_ok=True)
         lock = lock_checkpoint_dir("--checkpoint" if args.checkpoint else "--resume", ck_dir)
     try:
-        return _session(args, scene, est, settings, radius, ck, ck_dir, identity, passes,
-                        time_budget, need)
+        return run_session(args, scene, est, settings, radius, ck, ck_dir, identity, passes,
+                           time_budget, need)
     finally:
         if lock is not None:
             os.close(lock)  # the outputs are in place (or nothing is written)
-
-
-def _session(args, scene, est, settings, radius, ck, ck_dir, identity, passes, time_budget,
-             need) -> int:
-    """Render (resuming ``ck``), checkpoint into ``ck_dir``, write the outputs; the exit code.
-
-    Every failure is one line: Ctrl-C (130, the passes saved), a checkpoint that cannot be
-    written (1, the previous one kept), memory or workers lost (1, the passes saved), an
-    output that cannot be written (1, none of them written).
-    """
-    from psurf_core.budget_check import TRIM_SECONDS, release_free_memory
-    from psurf_core.render import RenderResult, render
-
-    acc = ck.accumulator if ck is not None else None
-    seconds_before = ck.seconds if ck is not None else 0.0
-    ckpt = None
-    if ck_dir is not None:
-        every = DEFAULT_CHECKPOINT_EVERY if args.checkpoint_every is None else args.checkpoint_every
-        budget = ({"passes": passes} if passes is not None else
-                  {"time": seconds_before + time_budget})
-        extra = {"scene": os.path.abspath(args.scene), "argv": list(sys.argv), "budget": budget}
-        start = acc if acc is not None else _empty_acc(scene)
-        on_disk = start.n if ck is not None and same_dir(ck_dir, args.resume) else None
-        ckpt = Checkpointer(ck_dir, identity, every, start, seconds_before, extra, on_disk)
-
-    start_n = acc.n if acc is not None else 0
-    bar, close = progress(args.estimator, passes, time_budget, start_n)
-
-    trimmed = [0.0]
-
-    def on_pass(i, a, elapsed):
-        if ckpt is not None:
-            write_checkpoint(ckpt, lambda: ckpt.on_pass(i, a, elapsed))
-        if bar is not None:
-            bar(i, a, elapsed)
-        if elapsed - trimmed[0] >= TRIM_SECONDS:  # long runs stay flat (glibc keeps pages)
-            trimmed[0] = elapsed
-            release_free_memory()
-
-    try:
-        if acc is not None and passes is not None and acc.n >= passes:
-            result = RenderResult(acc.mean.copy(), acc.variance, acc.n, settings.photons,
-                                  settings.spp, 0.0, est.spec, args.seed, acc)
-        else:
-            kw = dict(passes=passes, time_budget=time_budget, seed=args.seed, accumulator=acc,
-                      on_pass=on_pass)
-            result = (maybe_distributed(args, scene, est, settings, error=CliError, **kw)
-                      or render(scene, est, settings, **kw))
-    except KeyboardInterrupt:
-        close()
-        return report_interrupt(ckpt, args)
-    except CheckpointWriteError as e:  # disk full, read-only, the directory vanished
-        close()
-        print(f"{PROG}: error: {e.line(args.out)}", file=sys.stderr)
-        return 1
-    except MemoryError:
-        close()
-        saved = save_on_failure(ckpt)
-        print(f"{PROG}: error: out of memory while rendering (the run was estimated at "
-              f"{_fmt(need.total)}; lower the resolution, --spp or --photons, or give a "
-              f"--memory-budget below the memory free){saved}", file=sys.stderr)
-        return 1
-    except WorkersLost as e:  # every worker gone, or a pass lost with its worker
-        close()
-        saved = save_on_failure(ckpt)
-        print(f"{PROG}: error: {e}{saved}", file=sys.stderr)
-        return 1
-    except FloatingPointError as e:  # Welford.add refused a non-finite pixel: a bug
-        close()
-        saved = save_on_failure(ckpt)
-        print(f"{PROG}: error: internal: {e} (estimator '{est.spec}'; please report it)"
-              f"{saved}", file=sys.stderr)
-        return 1
-    finally:
-        close()
-    result.seconds += seconds_before
-
-    jobs = [(args.out, npz_writer(npz_payload(result, radius, scene, {
-        "radius_shrink": np.float64(args.radius_shrink),
-        "memory_budget_mib": np.int64(settings.memory_budget_mib)})))]
-    if args.png is not None:
-        jobs.append((args.png, png_writer(result.mean)))
-    if args.exr is not None:
-        from psurf_core.images import write_exr
-
-        jobs.append((args.exr, lambda tmp: write_exr(tmp, result.mean)))
-    try:
-        with sigint_deferred():
-            if ckpt is not None:
-                write_checkpoint(ckpt)
-            write_all(jobs)
-    except CheckpointWriteError as e:
-        print(f"{PROG}: error: {e.line(args.out)}", file=sys.stderr)
-        return 1
-    except OutputWriteError as e:
-        kept = (f"; {ckpt.directory} holds all {plural(ckpt.on_disk, 'pass')}: --resume "
-                f"{ckpt.directory} (without --time) writes them without rendering again"
-                if ckpt is not None and ckpt.on_disk else "")
-        print(f"{PROG}: error: {e}; nothing of {written_list(jobs)} written{kept}",
-              file=sys.stderr)
-        return 1
-    written = written_list(jobs)
-    budget_text = "" if est.reference else f" x {result.photons_per_pass} photons"
-    resumed = f" (continued from {plural(start_n, 'pass')})" if ck is not None else ""
-    print(f"{args.estimator}: {plural(result.passes, 'pass')}{budget_text}, spp {result.spp}, "
-          f"{result.seconds:.2f} s{resumed} -> {written}")
-    return 0
-
-
-def written_list(jobs) -> str:
-    """``"a.npz, a.png"``: the outputs of ``jobs``."""
-    return ", ".join(p for p, _ in jobs)
-
-
-def _fmt(nbytes: float) -> str:
-    from psurf_core.budget import format_bytes
-
-    return format_bytes(nbytes)
-
-
-def _empty_acc(scene):
-    from psurf_core.accumulate import Welford
-
-    return Welford.empty((scene.camera.height, scene.camera.width, 3))

@@ -20,7 +20,8 @@ module                     owns
 :mod:`.view3d`             the 3D view of a stage, composed in steps (the window's ticks)
 :mod:`.baked_light`        translucent surfaces shaded on the CPU (software OpenGL)
 :mod:`.compose`            what each part of the window shows for a state
-:mod:`.window`             the window's state and its changes; :func:`~.window.screenshot`
+:mod:`.view_state`         the window's state; which estimators its image panels show
+:mod:`.window`             the state built and changed; :func:`~.window.screenshot`
 :mod:`.footer`             the window's chips, buttons, sliders and help (an overlay)
 :mod:`.interactive`        the on-screen window: keys, stages, rendering
 :mod:`.interactive_timer`  the window's timer: what a tick takes in and draws
