@@ -304,12 +304,15 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
         nr = (3 if j > 1 else 1) * m
         rj = rng.random(out=r[:nr])
         lg = rj[nr - m :]
-        in_pieces(lambda a, b, lg=lg: np.log1p(np.negative(lg[a:b], out=lg[a:b]), out=lg[a:b]),
-                  m, threads, emission.ELEMENTWISE_MIN)
-        if j > 1:
-            cphi, sphi = emission.azimuth(rj[m : 2 * m], ws.sin[:m], threads)
-        else:
-            cphi = sphi = empty
+        az = rj[m : 2 * m] if j > 1 else None
+
+        def variates(a, b, lg=lg, az=az):  # one hand-out per depth for both (~50 us each)
+            np.log1p(np.negative(lg[a:b], out=lg[a:b]), out=lg[a:b])
+            if az is not None:
+                emission.azimuth_range(az, ws.sin, a, b)
+
+        in_pieces(variates, m, threads, emission.ELEMENTWISE_MIN)
+        cphi, sphi = (az, ws.sin[:m]) if j > 1 else (empty, empty)
         # Then segment j + 1's roulette variates (the reference draws them next).
         q_next = ref.roulette_survival(scene, j) if j < depth else 1.0
         select = j < depth and m > 0

@@ -201,14 +201,16 @@ def azimuth(r, sin_out=None, threads: int = 1):
     ``sin_out`` (a new array when omitted); on ``threads`` threads (elementwise: the values
     do not depend on it)."""
     s = np.empty_like(r) if sin_out is None else sin_out
-
-    def part(a, b):
-        ra = np.multiply(r[a:b], 2.0 * np.pi, out=r[a:b])
-        np.sin(ra, out=s[a:b])
-        np.cos(ra, out=ra)
-
-    in_pieces(part, r.shape[0], threads, ELEMENTWISE_MIN)
+    in_pieces(lambda a, b: azimuth_range(r, s, a, b), r.shape[0], threads, ELEMENTWISE_MIN)
     return r, s
+
+
+def azimuth_range(r, s, a: int, b: int) -> None:
+    """:func:`azimuth` on elements ``a .. b - 1``: ``cos(2 pi r)`` in place of ``r``,
+    ``sin(2 pi r)`` into ``s`` (numpy's, elementwise)."""
+    ra = np.multiply(r[a:b], 2.0 * np.pi, out=r[a:b])
+    np.sin(ra, out=s[a:b])
+    np.cos(ra, out=ra)
 
 
 #: Elements per thread below which an elementwise step runs on one thread.
