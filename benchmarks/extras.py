@@ -109,9 +109,10 @@ def scaling(scene, spec: str, photons: int) -> dict:
 
 
 _MEMORY_SCRIPT = """
-import json, resource, sys, time
+import json, sys, time
 from dataclasses import replace
 sys.path.insert(0, {root!r})
+from psurf_core.peak_memory import peak_rss_bytes
 from psurf_core.estimators import parse_estimator
 from psurf_core.render import RenderSettings, render_pass
 from psurf_core.scene_io import load_scene
@@ -119,7 +120,7 @@ scene = load_scene({scene!r})
 scene = replace(scene, camera=replace(scene.camera, width=256, height=192))
 est = parse_estimator({spec!r}, scene)
 import numpy as np
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+before = peak_rss_bytes()
 count = [0]
 def tally(tech, hits, prims, rays, raw, val):
     count[0] += len(hits)
@@ -128,7 +129,7 @@ pixels = (rows[:, None] * 256 + np.arange(256)[None]).ravel()
 a = time.perf_counter()
 render_pass(scene, est, 0, 0, RenderSettings(photons={photons}), tally=tally, pixels=pixels)
 sec = time.perf_counter() - a
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+peak = peak_rss_bytes()
 print(json.dumps(dict(peak=peak, before=before, seconds=sec, hits=count[0])))
 """
 

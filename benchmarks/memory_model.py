@@ -1,7 +1,8 @@
 """Measured peak memory of one run per size against :mod:`psurf_core.budget`'s model.
 
 Usage: ``python benchmarks/memory_model.py [--quick] [--json OUT.json]`` prints one row per
-configuration: the peak RSS growth of a fresh process rendering it (``ru_maxrss`` after a
+configuration: the peak RSS growth of a fresh process rendering it (``VmHWM``,
+:func:`psurf_core.peak_memory.peak_rss_bytes`, after a
 warm-up render of the same estimator at 32x24, so imports and compiled kernels do not count)
 and what :func:`psurf_core.budget.render_need` says. The model is meant to be above every
 measurement (``ratio`` = model / measured >= 1), by up to ~2-3x. ``--one JSON`` measures one
@@ -63,26 +64,26 @@ def _scene(cfg: dict, tmp: str):
 def measure_one(cfg: dict) -> dict:
     """Run ``cfg`` in this (fresh) process: the peak RSS growth of loading its scene and
     rendering it, after a warm-up render, and the modelled need."""
-    import resource
     import tempfile
 
     from psurf_core import budget, parse_estimator
+    from psurf_core.peak_memory import peak_rss_bytes
     from psurf_core.render import RenderSettings, render
 
     with tempfile.TemporaryDirectory() as tmp:
         warm = _scene({"res": (32, 24)}, tmp)
         render(warm, parse_estimator(cfg["est"], warm), RenderSettings(photons=300), passes=2)
-        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        before = peak_rss_bytes()
         scene = _scene(cfg, tmp)
         est = parse_estimator(cfg["est"], scene)
         st = RenderSettings(photons=int(cfg.get("photons", 1000)), spp=int(cfg.get("spp", 1)),
                             memory_budget_mib=int(cfg.get("budget", 512)))
         render(scene, est, st, passes=int(cfg.get("passes", 2)))
-        after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        after = peak_rss_bytes()
     need = budget.render_need(scene, est, st)
     # Loading a mesh needs more than rendering with it (trimesh's parsing).
     load = budget.scene_triangles(scene) * (budget.TRIANGLE_LOAD_BYTES - budget.TRIANGLE_BYTES)
-    measured = (after - before) * 1024  # Linux: KiB
+    measured = after - before
     model = need.total + max(load, 0)
     return {**cfg, "measured_mib": round(measured / 2**20, 1),
             "model_mib": round(model / 2**20, 1), "ratio": round(model / max(measured, 1), 2)}

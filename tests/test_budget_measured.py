@@ -32,7 +32,7 @@ CASES = [
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(sys.platform != "linux", reason="ru_maxrss in KiB is Linux's")
+@pytest.mark.skipif(sys.platform != "linux", reason="VmHWM in /proc/self/status is Linux's")
 @pytest.mark.parametrize("cfg", CASES, ids=lambda c: "-".join(f"{v}" for v in c.values()))
 def test_model_is_above_the_measured_peak(cfg):
     row = memory_model.measure(cfg)

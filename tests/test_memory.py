@@ -5,8 +5,9 @@ One render whose full rays x primitives arrays would need more than 4 GiB (64x48
 because a long plane spans the whole box: 12288 x 15000 pairs x 8 bytes x 3 coordinates =
 4.4 GiB) runs with ``--memory-budget 1024`` and its peak resident memory grows by less than
 1 GiB. It runs through ``app.main`` in a fresh subprocess that measures its own peak RSS
-(``getrusage(RUSAGE_SELF).ru_maxrss``) after a warm-up render, so imports and caches do not
-count.
+(:func:`psurf_core.peak_memory.peak_rss_bytes`: ``VmHWM``, not ``ru_maxrss``, which a child
+inherits from its parent, this pytest process) after a warm-up render, so imports and caches do
+not count.
 """
 
 from __future__ import annotations
@@ -61,19 +62,20 @@ max_scatter = 2
 """
 
 CHILD = textwrap.dedent("""\
-    import json, resource, sys, time
+    import json, sys, time
     import app
+    from psurf_core.peak_memory import peak_rss_bytes
 
     scene, out = sys.argv[1], sys.argv[2]
     common = ["render", scene, "--estimator", "plane-t1t2", "--spp", "{spp}", "--passes", "1",
               "--memory-budget", "{budget}"]
     assert app.main([*common, "--photons", "50", "--out", out]) == 0  # warm-up
-    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    base = peak_rss_bytes()
     t = time.perf_counter()
     code = app.main([*common, "--photons", "{photons}", "--out", out])
     seconds = time.perf_counter() - t
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    print(json.dumps({{"code": code, "base_kib": base, "peak_kib": peak, "seconds": seconds}}))
+    peak = peak_rss_bytes()
+    print(json.dumps({{"code": code, "base_bytes": base, "peak_bytes": peak, "seconds": seconds}}))
 """).format(spp=SPP, budget=BUDGET_MIB, photons=PHOTONS)
 
 
@@ -105,7 +107,7 @@ def test_render_needing_4_gib_of_pairs_runs_in_a_1_gib_budget(tmp_path):
     assert r.returncode == 0, r.stderr
     m = json.loads(r.stdout.strip().splitlines()[-1])
     assert m["code"] == 0
-    grown_mib = (m["peak_kib"] - m["base_kib"]) / 1024  # Linux reports ru_maxrss in KiB
+    grown_mib = (m["peak_bytes"] - m["base_bytes"]) / 2**20
     print(f"\n{rays} rays x {prims} planes: full arrays {full / 2**30:.2f} GiB; peak RSS grew "
           f"{grown_mib:.0f} MiB (budget {BUDGET_MIB} MiB) in {m['seconds']:.1f} s")
     assert grown_mib < BUDGET_MIB
