@@ -98,8 +98,9 @@ def test_dense_medium_error_bars_are_honest_against_paper_full(dense):
     for seed in range(4):
         r = render(dense, est, RenderSettings(spp=4), passes=200, seed=seed)
         m, se = r.mean[..., 0], np.sqrt(r.var[..., 0] / r.passes)
-        z = (m - p) / np.sqrt(se**2 + p_se**2)
-        zs.append(z[lit])
+        # Only lit pixels: an unlit one has m = p = 0 and both errors 0 (0/0).
+        z = (m[lit] - p[lit]) / np.sqrt(se[lit]**2 + p_se[lit]**2)
+        zs.append(z)
         means.append(m)
         sums.append((m[lit].sum() - p[lit].sum()) / np.sqrt((se[lit]**2 + p_se[lit]**2).sum()))
     per_run = [np.abs(z).mean() for z in zs]
