@@ -280,17 +280,14 @@ def test_cli_bad_pixel_syntax(capsys, tmp_path):
 # --------------------------------------------------------------------------- window actions
 def test_window_actions_offscreen(tmp_path, monkeypatch):
     """The key handlers of the window, driven directly on an off-screen plotter."""
-    from ui.views.interactive import App
-    from ui.views.window import build_state, compose, make_plotter
+    from window_frames_support import bound_app
+
+    from ui.views.window import build_state
 
     monkeypatch.chdir(tmp_path)
     state = build_state(str(ROOT / "scenes" / "point.toml"), "planes", seed=1, pixel_xy=(32, 24),
                         photons=100, passes=1)
-    plotter = make_plotter((800, 450), off_screen=True)
-    try:
-        compose(plotter, state)
-        app = App(plotter, state)
-        app.bind()
+    with bound_app(state) as (plotter, app):
         for _ in range(6):
             app.next()
         assert state.stage == "reconstruct"
@@ -310,5 +307,3 @@ def test_window_actions_offscreen(tmp_path, monkeypatch):
         assert list(tmp_path.glob("psurf-evaluate-33x23-pass2.png"))
         app.reset()
         assert state.stage == "trace" and state.acc.n == 1 and not state.playing
-    finally:
-        plotter.close()

@@ -23,18 +23,15 @@ def test_progressive_panels_tick_pick_and_modes():
     deterministically): passes arrive through ``tick``, a click on a scaled tile of
     ``image_panels.PanelView`` picks the pixel, coverage lands on the inspected estimator's
     tile, ``m`` cycles the panel modes, a medium change restarts the worker's job."""
-    from ui.views.interactive import App
-    from ui.views.window import attach_progressive, build_state, compose, make_plotter
+    from window_frames_support import bound_app
+
+    from ui.views.window import attach_progressive, build_state
 
     state = build_state(POINT, seed=1, pixel_xy=(32, 24), photons=100, render_passes=False,
                         estimators=["mis:plane-t1t2+planes", "planes"])
     assert state.inspected == 0  # the MIS set
     attach_progressive(state, workers=0)
-    plotter = make_plotter((800, 450), off_screen=True)
-    try:
-        compose(plotter, state)
-        app = App(plotter, state)
-        app.bind()
+    with bound_app(state) as (plotter, app):
         for _ in range(4):
             app.tick()
         assert sum(state.prog.passes) == 4 and state.acc is state.prog.runs[0].acc
@@ -68,9 +65,6 @@ def test_progressive_panels_tick_pick_and_modes():
         assert state.prog.job.specs == ("mis:plane-t1t2+planes", "planes")
         app.toggle_member("plane-t1t2")
         assert state.prog.job.specs == ("mis:plane-t1t2+planes~plane-t1t2", "planes")
-    finally:
-        app.close()
-        plotter.close()
 
 
 @pytest.mark.parametrize("value, message", [("nope", "unknown"), ("reference",

@@ -35,6 +35,28 @@ p = make_plotter((640, 480))
 
 
 @contextlib.contextmanager
+def bound_app(state, size=(800, 450)):
+    """``(plotter, app)``: an off-screen plotter of ``size`` (pixels) with the window composed
+    for ``state`` and its keys bound, for tests that drive the handlers directly; the app and
+    the plotter are closed after (``test_ui_screenshots.py``,
+    ``test_window_controls_progressive.py``)."""
+    from ui.views.interactive import App
+    from ui.views.window import compose, make_plotter
+
+    plotter = make_plotter(size, off_screen=True)
+    app = None
+    try:
+        compose(plotter, state)
+        app = App(plotter, state)
+        app.bind()
+        yield plotter, app
+    finally:
+        if app is not None:
+            app.close()
+        plotter.close()
+
+
+@contextlib.contextmanager
 def window_app(tmp_path, monkeypatch):
     """The window off-screen, ``planes`` beside an MIS set, passes rendered in this process
     (the body of the ``app`` fixture, ``conftest.py``)."""
