@@ -80,14 +80,18 @@ import mitsuba_scene as ms  # noqa: E402
 from psurf_core.metrics import RELMSE_EPS, relmse, var_relmse  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
 
-#: (case, scene file, min_scatter, max_scatter): every bundled scene with its own [render]
-#: window, and the study scenes with the windows of docs/study.md.
+#: (case, scene file, min_scatter, max_scatter): every bundled scene with the window of its
+#: own ``[render]`` table (K = 1..inf where it has none), and the study scenes with the
+#: windows of docs/study.md (``tests/test_vs_mitsuba.py`` checks that no bundled scene is left
+#: out).
 CASES = (
     ("point", "scenes/point.toml", 1, -1),
     ("area", "scenes/area.toml", 1, -1),
     ("area_occluder", "scenes/area_occluder.toml", 1, -1),
     ("hg", "scenes/hg.toml", 1, -1),
     ("mesh_light", "scenes/mesh_light.toml", 1, -1),
+    ("showcase", "scenes/showcase.toml", 2, 3),
+    ("dense_mesh_light", "scenes/dense_mesh_light.toml", 1, 4),
     ("study_medium_k1", "scenes/study_medium.toml", 1, 1),
     ("study_medium_k23", "scenes/study_medium.toml", 2, 3),
     ("study_area_k1", "scenes/study_area.toml", 1, 1),

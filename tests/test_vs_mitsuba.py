@@ -305,6 +305,20 @@ def test_recommended_estimator_per_window_and_override():
         vs_mitsuba._estimators(["nosuchcase=planes"], cases)
 
 
+def test_every_bundled_scene_is_a_case_with_its_own_window():
+    """Issue 12 asks for every bundled scene: a scene added to scenes/ without a case fails
+    here, and a bundled (non-study) scene's case renders the window of its [render] table."""
+    from psurf_core.scene_io import load_scene
+
+    root = Path(__file__).resolve().parents[1]
+    bundled = {f"scenes/{p.name}" for p in (root / "scenes").glob("*.toml")}
+    assert {c[1] for c in vs_mitsuba.CASES} == bundled
+    for case, path, kmin, kmax in vs_mitsuba.CASES:
+        if not case.startswith("study_"):
+            sc = load_scene(root / path)
+            assert (kmin, kmax) == (sc.min_scatter, sc.max_scatter), case
+
+
 def test_photons_flag_is_auto_or_a_positive_count():
     assert vs_mitsuba._photons("auto") == "auto" and vs_mitsuba._photons("200") == 200
     for bad in ("0", "-3", "many", "2.5"):
