@@ -140,49 +140,24 @@ def ray_triangles_first(o, d, tris, t_min, t_max):
     return best
 
 
-class _EmbreeTriangles:
-    """Embree (``embreex`` through trimesh) first-hit queries on a triangle soup.
-
-    Embree works in float32; hits closer than ``_RECHECK`` are re-tested exactly in float64
-    so that a segment leaving an emitter's surface is never blocked by float32 rounding.
-    """
-
-    _RECHECK = 1e-4
+class _MeshHierarchy:
+    """First-hit queries on a triangle soup through :mod:`psurf_core.kernels.mesh_bvh`: the
+    exact float64 test of :func:`ray_triangles_first` over a bounding volume hierarchy,
+    compiled. The compiled shadow tests (``kernels.shadow.occluded``) walk the same
+    hierarchy, so a segment gets one verdict on either path. (Until 2026-12 this was Embree,
+    float32 through trimesh, with an exact re-test near ``t_min``: the walkers then had to
+    hand every segment near a mesh back to numpy, ~1.8 us a hit on a mesh light.)"""
 
     def __init__(self, tris: np.ndarray):
-        import trimesh
-        from trimesh.ray.ray_pyembree import RayMeshIntersector
+        from .kernels import mesh_bvh
 
-        mesh = trimesh.Trimesh(vertices=tris.reshape(-1, 3),
-                               faces=np.arange(tris.shape[0] * 3).reshape(-1, 3), process=False)
-        self.tris = tris
-        self.rmi = RayMeshIntersector(mesh)
+        self._first_hits = mesh_bvh.first_hits
+        self.nodes, self.tris = mesh_bvh.build(tris)
 
     def first(self, o, d, t_min, t_max):
-        best = np.full(o.shape[0], np.inf)
-        live = np.flatnonzero(t_max > t_min)
-        if live.size == 0:
-            return best
-        start = o[live] + t_min[live, None] * d[live]
-        loc, ir, _ = self.rmi.intersects_location(start, d[live], multiple_hits=False)
-        if ir.size:
-            t = t_min[live[ir]] + np.einsum("ij,ij->i", loc - start[ir], d[live[ir]])
-            best[live[ir]] = t
-        near = np.flatnonzero(best < t_min + self._RECHECK)
-        if near.size:
-            best[near] = ray_triangles_first(o[near], d[near], self.tris, t_min[near],
-                                             t_max[near])
-        return np.where(best < t_max, best, np.inf)
-
-
-def _triangle_engine(tris: np.ndarray):
-    """Embree when ``embreex`` is importable and the mesh is not tiny, else ``None``."""
-    if tris.shape[0] < 8:
-        return None
-    try:
-        return _EmbreeTriangles(tris)
-    except ImportError:  # embreex missing on this platform: the numpy test is exact too
-        return None
+        c = np.ascontiguousarray
+        return self._first_hits(c(o, float), c(d, float), c(t_min, float), c(t_max, float),
+                                self.nodes, self.tris)
 
 
 @dataclass(frozen=True)
@@ -198,7 +173,7 @@ class Blockers:
     box_max: np.ndarray  # (B, 3)
     quads: tuple  # of (corner, edge_u, edge_v)
     triangles: np.ndarray  # (F, 3, 3), all mesh occluders and mesh lights
-    engine: object = None  # _EmbreeTriangles over `triangles`, when available
+    engine: object = None  # _MeshHierarchy over `triangles` (None without triangles)
     bounds: np.ndarray | None = None  # (N, 2, 3) world boxes holding every blocker
     planes: np.ndarray | None = None  # (N, 4) (n, n . p) of a planar blocker, NaN otherwise
 
@@ -210,6 +185,15 @@ class Blockers:
             and not self.quads
             and self.triangles.shape[0] == 0
         )
+
+    def mesh_hierarchy(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(nodes, triangles)`` of the triangles' hierarchy (``kernels.mesh_bvh``; empty
+        tables without triangles): what the compiled shadow tests walk."""
+        if self.engine is None:
+            from .kernels import mesh_bvh
+
+            return mesh_bvh.build(np.zeros((0, 3, 3)))
+        return self.engine.nodes, self.engine.tris
 
     def first_hit(self, o, d, t_min=None, t_max=None) -> np.ndarray:
         """Distance to the first blocker along unit rays, in ``(t_min, t_max)``.
@@ -344,7 +328,7 @@ def _blockers_of(scene: Scene) -> Blockers:
         box_max=np.array(bmax, dtype=float).reshape(-1, 3),
         quads=tuple(quads),
         triangles=(tri := np.concatenate(tris, axis=0) if tris else np.zeros((0, 3, 3))),
-        engine=_triangle_engine(tri),
+        engine=_MeshHierarchy(tri) if tri.shape[0] else None,
         bounds=np.array(bounds, dtype=float).reshape(-1, 2, 3),
         planes=np.array(planes, dtype=float).reshape(-1, 4),
     )

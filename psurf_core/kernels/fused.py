@@ -1,5 +1,4 @@
-"""Running a technique's walker over a pass: spans, chunks, threads, buffers, and the exact
-mesh shadow tests the walker defers.
+"""Running a technique's walker over a pass: spans, chunks, threads and buffers.
 
 :func:`fused_pass` is what :func:`psurf_core.render.photon_pass` calls for a technique with a
 compiled declaration (``Technique.compiled``). It
@@ -10,9 +9,8 @@ compiled declaration (``Technique.compiled``). It
    a large chunk into pieces for threads (:mod:`.threads`) whose outputs are put back in span
    order, so hits, their order and the image do not depend on the thread count;
 3. runs the walker (:mod:`.walk`) with the MIS weight of the technique's set composed in
-   (:mod:`.mis`) where every member has a compiled density;
-4. tests the segments the walker left ``DEFER`` (a triangle mesh's box) with
-   :meth:`Blockers.occluded` and zeroes the hits found blocked.
+   (:mod:`.mis`) where every member has a compiled density, and its shadow tests against
+   every blocker, triangle meshes included (:mod:`.shadow`, :mod:`.mesh_bvh`).
 
 With ``emit`` it yields every hit (:class:`~psurf_core.techniques.base.Hits` with the
 technique's hit records, per-photon values and, where compiled, MIS weights: what the UI,
@@ -35,7 +33,7 @@ from .buffers import HitBuffers
 from .jit import ctrl_c_kept, kernel
 from .mis import member_params, weight_of
 from .rays import ray_table
-from .shadow import BLOCKED, DEFER, blocker_table
+from .shadow import shadow_args
 from .spans import hull_spans
 from .threads import PIECES_PER_THREAD, on_threads, thread_count
 from .walk import accumulate, walker
@@ -110,7 +108,7 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
     fam = getattr(tech, "compiled", None)
     if fam is None:
         return None
-    blk = blocker_table(ctx.blockers)
+    blk = shadow_args(ctx.blockers)
     if blk is None:
         return None
     cs, rt, rid = ray_table(rays, ctx.scene.camera.n_pixels)
@@ -149,13 +147,9 @@ class _Run:
         lights = _photon_lights(paths, ctx.scene)
         # The walker's constant arguments after the span range (its signature, in order).
         self.const = (int(ctx.scene.camera.width), cs, flat(rt), rid, flat(prims.data),
-                      bool(tech.short), medium_row(ctx.scene.medium), flat(blk),
+                      bool(tech.short), medium_row(ctx.scene.medium), blk,
                       c(prims.photon, np.int64), c(prims.K, np.int64), c(paths.x, float),
                       c(paths.w, float), c(paths.t, float), lights, shares, emit)
-        # DEFER only arises from triangle meshes: without one, no full rows are needed
-        # unless they are asked for.
-        self.full_rows = emit or memo(ctx.blockers, "has mesh",
-                                      lambda: bool(np.any(blk["kind"] == 3)))
 
     def spans(self):
         cam, med = self.ctx.scene.camera, self.ctx.scene.medium
@@ -207,65 +201,40 @@ class _Run:
         caps = [int(cand[i:j].sum()) * self.fam.n_roots for i, j in zip(cut[:-1], cut[1:],
                                                                           strict=True)]
         off = np.concatenate([[0], np.cumsum(caps)]).astype(np.int64)
-        full = _BUFFERS.take("full", self.full_fields(), int(off[-1]) if self.full_rows else 0)
+        full = _BUFFERS.take("full", self.full_fields(), int(off[-1]) if self.emit else 0)
         compact = _BUFFERS.take("compact", _COMPACT, 0 if self.emit else int(off[-1]))
-        ends = np.zeros((len(caps), 4), np.int64)
+        ends = np.zeros((len(caps), 3), np.int64)
 
         def piece(j):
-            n0 = off[j] if self.full_rows else 0
+            n0 = off[j] if self.emit else 0
             na0 = 0 if self.emit else off[j]
-            lim = off[j + 1] if self.full_rows else 0
+            lim = off[j + 1] if self.emit else 0
             ends[j] = self.walk(cut[j], cut[j + 1], *spans, *self.const, *full, n0, lim,
                                 *compact, na0)
 
         on_threads(piece, len(caps), threads)
-        n_full = int((ends[:, 0] - (off[:-1] if self.full_rows else 0)).sum())
+        n_full = int((ends[:, 0] - (off[:-1] if self.emit else 0)).sum())
         return dict(full=full, compact=(compact[0], compact[1], off[:-1].copy(), ends[:, 1]),
-                    full_ranges=(off[:-1] if self.full_rows else np.zeros(len(caps), np.int64),
-                                 ends[:, 0]), n_full=n_full,
-                    n_defer=int(ends[:, 2].sum()), n_hits=int(ends[:, 3].sum()))
+                    full_ranges=(off[:-1] if self.emit else np.zeros(len(caps), np.int64),
+                                 ends[:, 0]), n_full=n_full, n_hits=int(ends[:, 2].sum()))
 
     def full_fields(self):
         return (*_FULL_HEAD, (np.float64, sum(widths(self.fam.hit))), *_FULL_TAIL)
 
     def finish(self, res, out):
-        """The full rows of a chunk as Hits (pieces closed up in order), with the deferred
-        segments tested; without ``emit``, their weighted values go to ``out``."""
+        """The full rows of a chunk (``emit``) as Hits, pieces closed up in order; with
+        ``add_emitted``, their weighted values also go to ``out``."""
         starts, ends = res["full_ranges"]
         cols = [np.concatenate([f[s:e] for s, e in zip(starts, ends, strict=True)])
                 if len(starts) > 1 else f[starts[0]:ends[0]] for f in res["full"]]
         ray, prim, s, hit, val, wts, st = cols
         hits = Hits(ray, prim, s, hit.view(np.float64).view(
             dtype_of(self.fam.hit)).reshape(-1).view(np.recarray))
-        later = (st == DEFER).any(axis=1) if self.emit and self.add_emitted else None
-        if res["n_defer"]:
-            self.resolve(hits, st, val)
-        weights = wts if self.weighted else None
-        if self.emit:
-            yield hits, val, weights
-            if out is not None and self.add_emitted:
-                # The walker's order without emit: the chunk's undeferred hits, then the
-                # deferred ones (np.add.at adds one row after another, as it does).
-                final = val * (wts[:, None] if self.weighted else 1.0)
-                np.add.at(out, ray[~later], final[~later])
-                np.add.at(out, ray[later], final[later])
-        else:
-            w = wts if self.weighted else 1.0
-            np.add.at(out, ray, val * (w[:, None] if self.weighted else w))
-
-    def resolve(self, hits, st, val):
-        """Exact shadow tests (:meth:`Blockers.occluded`) of the deferred segments; zero the
-        values (rows of ``val``, in place) of the hits found blocked."""
-        rows = np.flatnonzero(np.any(st == DEFER, axis=1))
-        sub, st = hits.select(rows), st[rows]
-        ok = ~np.any(st == BLOCKED, axis=1)
-        x0 = self.rays.o[sub.ray] + sub.s[:, None] * self.rays.d[sub.ray]
-        segs = self.fam.segments(self.prims.data[sub.prim], x0, sub.data)
-        for k, (a, b) in enumerate(segs):
-            idx = np.flatnonzero(ok & (st[:, k] == DEFER))
-            if idx.size:
-                ok[idx] = ~self.ctx.blockers.occluded(a[idx], b[idx])
-        val[rows[~ok]] = 0.0
+        yield hits, val, wts if self.weighted else None
+        if out is not None and self.add_emitted:
+            # In the walker's order without emit (np.add.at adds one row after another, as
+            # accumulate does), so the image does not depend on emit.
+            np.add.at(out, ray, val * (wts[:, None] if self.weighted else 1.0))
 
 
 @kernel

@@ -1,12 +1,13 @@
 """Compiled shadow tests: the status of one shadow segment against the scene's spheres,
-boxes and emitter quads, with a segment that meets a triangle mesh's box handed back for the
-exact test.
+boxes, emitter quads and triangle meshes.
 
 :func:`blocker_table` packs :class:`~psurf_core.geometry.Blockers` into :class:`BlockerRow`
-records; :func:`occluded` reads them inside the walkers' loops and answers ``CLEAR``,
-``BLOCKED`` or ``DEFER`` (the caller then runs :meth:`Blockers.occluded`: Embree plus the
-exact float64 re-test). One compiled copy of the tests of ``geometry.first_hit``, so every
-compiled technique agrees with the numpy path. :func:`status` is the call the walkers make.
+records; :func:`shadow_args` adds the triangles' hierarchy (:mod:`.mesh_bvh`, the one
+``Blockers`` itself queries); :func:`occluded` reads them inside the walkers' loops and
+answers ``CLEAR`` or ``BLOCKED``. One compiled copy of the tests of ``geometry.first_hit``, so
+every compiled technique agrees with the numpy path. :func:`status` is the call the walkers
+make. (``DEFER``, "left for ``Blockers.occluded``", is what Trace's rounding-bound tests,
+:mod:`psurf_core.trace_shadow`, answer when they cannot decide.)
 """
 
 from __future__ import annotations
@@ -17,8 +18,9 @@ import numpy as np
 
 from ..constants import BOUNDS_PAD, PARALLEL_EPS, SHADOW_EPS
 from ..memo import memo
-from ..records import Vec, load, table
+from ..records import Vec, flat, load, table
 from .jit import inline, kernel
+from .mesh_bvh import any_hit
 
 #: Shadow-segment status.
 CLEAR, BLOCKED, DEFER = 0, 1, 2
@@ -127,44 +129,56 @@ def _first_hit(a, d, bl, t_min, t_max):
 
 @kernel
 def occluded(a, b, blockers):  # pragma: no cover - compiled
-    """Status of the open segment ``a -> b`` (3-tuples): ``CLEAR``, ``BLOCKED`` or ``DEFER``
-    (a mesh's box meets it: the caller runs the exact test). Mirrors
+    """Status of the open segment ``a -> b`` (3-tuples): ``CLEAR`` or ``BLOCKED``. Mirrors
     :meth:`Blockers.occluded`: the per-blocker box (and quad plane) reject, then the
-    first-hit tests of ``first_hit`` in ``(SHADOW_EPS, |b - a| - SHADOW_EPS)``.
-    ``blockers``: the flat :func:`blocker_table`.
+    first-hit tests of ``first_hit`` in ``(SHADOW_EPS, |b - a| - SHADOW_EPS)``, the
+    triangles' through their hierarchy when a mesh's box meets the segment.
+    ``blockers``: :func:`shadow_args`.
 
     Compiled once as a function of its own (not inlined): a copy per call site in every
     walker tripled the compile time, and a call costs little beside the tests.
     """
+    rows, nodes, tris = blockers
     near = False
     mesh = False
-    for k in range(blockers.shape[0]):
-        bl = load(blockers, k, BlockerRow)
+    for k in range(rows.shape[0]):
+        bl = load(rows, k, BlockerRow)
         if _near(a, b, bl):
             near = True
             if bl.kind == MESH:
                 mesh = True
     if not near:
         return CLEAR
-    if mesh:
-        return DEFER
     v0, v1, v2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     length = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     nrm = length if length > 0 else 1.0
     d = (v0 / nrm, v1 / nrm, v2 / nrm)
-    for k in range(blockers.shape[0]):
-        bl = load(blockers, k, BlockerRow)
+    for k in range(rows.shape[0]):
+        bl = load(rows, k, BlockerRow)
         if bl.kind != MESH and _first_hit(a, d, bl, SHADOW_EPS, length - SHADOW_EPS):
             return BLOCKED
+    if mesh and any_hit(a, d, SHADOW_EPS, length - SHADOW_EPS, nodes, tris):
+        return BLOCKED
     return CLEAR
 
 
 @inline
 def status(a, b, blockers):
     """:func:`occluded`, or ``CLEAR`` without a call when the scene has no blockers."""
-    if blockers.shape[0] == 0:
+    if blockers[0].shape[0] == 0:
         return CLEAR
     return occluded(a, b, blockers)
+
+
+def shadow_args(blockers):
+    """What :func:`occluded` takes: the flat :func:`blocker_table` and the triangles'
+    hierarchy ``(rows, nodes, triangles)`` (the hierarchy ``Blockers`` answers its numpy
+    callers with, so both paths give one verdict), or ``None`` when the blockers carry no
+    bounds (then the numpy path runs). Built once per ``blockers``."""
+    tab = blocker_table(blockers)
+    if tab is None:
+        return None
+    return memo(blockers, "shadow args", lambda: (flat(tab), *blockers.mesh_hierarchy()))
 
 
 def blocker_table(blockers):

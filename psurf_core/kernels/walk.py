@@ -19,10 +19,10 @@ Evaluate do:
 
 ``G`` is the primitive's geometry record, read once per span. Hits go to one of two outputs:
 *full rows* (ray, primitive, ``s``, the hit record, value, weight, shadow statuses: what
-``Hits`` and the UI need) when ``emit`` is set or a segment needs the exact mesh test
-(``DEFER``), else *compact rows* (ray, weighted value) that the caller adds to the image in
-order. A walker is built per (family, MIS set, member) by :func:`walker` and compiled once per
-clone (the on-disk cache is keyed by every source it inlines, :mod:`.cache`).
+``Hits`` and the UI need) when ``emit`` is set, else *compact rows* (ray, weighted value)
+that the caller adds to the image in order. A walker is built per (family, MIS set, member)
+by :func:`walker` and compiled once per clone (the on-disk cache is keyed by every source it
+inlines, :mod:`.cache`).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from ..path_record import at_hit, photon_row
 from ..records import load, store
 from .jit import inline, kernel
 from .rays import RayRow
-from .shadow import BLOCKED, DEFER
+from .shadow import BLOCKED
 from .vec import madd
 
 _WALKERS: dict = {}
@@ -67,13 +67,11 @@ def _build(fam, weight):
              o_ray, o_prim, o_s, o_hit, o_val, o_w, o_st, n, lim,
              a_ray, a_val, na):  # pragma: no cover - compiled
         """Hits of spans ``i0 .. i1 - 1`` (module docstring); full rows from ``n`` (up to
-        ``lim``), compact rows from ``na``. Returns the next free full and compact rows, the
-        number of full rows with a ``DEFER`` status and the number of hits (occluded ones
-        included: every hit is shaded)."""
-        n_defer = 0
+        ``lim``), compact rows from ``na``. Returns the next free full and compact rows and
+        the number of hits (occluded ones included: every hit is shaded)."""
         n_hits = 0
         if i1 <= i0:
-            return n, na, n_defer, n_hits
+            return n, na, n_hits
         # The photon's path row, for the MIS weight: built once per primitive (its spans are
         # consecutive, one per image row), not once per span.
         last = s_prim[i0]
@@ -105,13 +103,12 @@ def _build(fam, weight):
                         scal = 0.0
                     else:
                         scal = contribution(G, ray.psi, s, ray.s_min, hit, short, medium)
-                    defer = st[0] == DEFER or st[1] == DEFER or st[2] == DEFER
                     w = 1.0
                     # A blocked hit added to the image adds nothing: its weight is needed
-                    # only where the hit itself is kept (emit, or a deferred shadow test).
-                    if mis and (emit or defer or scal != 0.0):
+                    # only where the hit itself is kept (emit).
+                    if mis and (emit or scal != 0.0):
                         w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), params)
-                    if emit or defer:
+                    if emit:
                         if n >= lim:  # cannot happen: lim is the candidates x roots bound
                             raise RuntimeError("walker: output capacity exceeded")
                         o_ray[n] = rid[k]
@@ -123,13 +120,12 @@ def _build(fam, weight):
                             o_st[n, c] = st[c]
                         o_w[n] = w
                         n += 1
-                        n_defer += 1 if defer else 0
                     elif scal != 0.0:
                         a_ray[na] = rid[k]
                         for c in range(3):
                             a_val[na, c] = (G.beta[c] * scal) * w
                         na += 1
-        return n, na, n_defer, n_hits
+        return n, na, n_hits
 
     return walk
 
