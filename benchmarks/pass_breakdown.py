@@ -19,7 +19,9 @@ sweeps every photon, as in ``stages.py``), it prints:
   statuses (``novis``: every segment clear), without its contribution (``nocontrib``: the
   ray distance ``s`` instead) or without both (``neither``), run in alternating rounds in one
   process (the order rotated each round), so that load drift hits every variant alike. The
-  hits are the same in every variant (ablation changes only the work per hit; it is checked);
+  hits are the same in every variant (ablation changes only the work per hit; it is checked).
+  Without the statuses, a hit they would have blocked is shaded (and MIS-weighted) like any
+  other, so ``novis`` understates the saving where many hits are blocked;
 * ``--scaling``: the walker's wall ms on 1 and on 2 numba threads (alternating rounds) and
   their ratio. A chunk goes to threads only from ``fused.THREADED_MIN_PAIRS`` candidate
   pairs, and ``threads.thread_count`` uses no more threads than other processes leave cores
@@ -365,8 +367,12 @@ def main(argv=None) -> int:
         numba.set_num_threads(threads_before)
     report(res)
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(res, f, indent=1)
+        try:
+            with open(args.json, "w") as f:
+                json.dump(res, f, indent=1)
+        except OSError as e:
+            print(f"pass_breakdown: --json: {e}", file=sys.stderr)
+            return 2
     return 0
 
 
