@@ -10,7 +10,7 @@ with the same seed, settings and pass count, whichever worker ran which pass and
 finished. It is the local, dependency-free sibling of :mod:`psurf_core.distributed` (Dask).
 
 Workers are started with ``spawn`` (no state inherited from a parent that may hold GUI or
-Embree threads) and ignore SIGINT: Ctrl-C reaches the parent only, which cancels what is
+numba threads) and ignore SIGINT: Ctrl-C reaches the parent only, which cancels what is
 queued and re-raises.
 """
 

@@ -19,7 +19,7 @@ second-order terms and the rounding of the bounds themselves). Per segment, foll
 3. the exact test (``Blockers.first_hit`` between ``SHADOW_EPS`` and ``|b - a| - SHADOW_EPS``
    against every blocker): :func:`sphere_hit` (``geometry.ray_sphere``), :func:`box_hit`
    (``geometry.ray_box``), :func:`quad_hit` (``geometry.ray_parallelogram``); triangles
-   (Embree's float32, then the numpy test) are left undecided.
+   (``Blockers``' hierarchy, ``kernels.mesh_bvh``) are left undecided.
 
 Logic is three-valued (``NO``, ``YES``, ``MAYBE``). The step kernel lists the near segments
 (1.); :func:`shade` decides them (2., 3.). A depth with any undecided (``DEFER``) segment
@@ -259,7 +259,7 @@ def blocker_hit(a, d, ed, t_max, et_max, bl):  # pragma: no cover - compiled
         return box_hit(a, d, ed, t_max, et_max, bl.p, bl.e1)
     if bl.kind == QUAD:
         return quad_hit(a, d, ed, t_max, et_max, bl.p, bl.n, bl.e1, bl.e2, bl.gram)
-    return MAYBE  # triangles: Embree's float32 hits, then the numpy test
+    return MAYBE  # triangles: Blockers.occluded decides them (kernels.mesh_bvh)
 
 
 def shade(nn, a, b, inside, rows, test_all, ok, photon, verdict, threads: int = 1) -> bool:
