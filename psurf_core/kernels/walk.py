@@ -50,8 +50,10 @@ def walker(fam, weight=None, key=None):
     process."""
     k = (id(fam), key)
     if k not in _WALKERS:
-        _WALKERS[k] = _build(fam, weight)
-    return _WALKERS[k]
+        # ``fam`` is kept with its walker: while it lives, no other record can take its id
+        # (a record built on the fly, then freed, would otherwise hand its id and walker on).
+        _WALKERS[k] = (fam, _build(fam, weight))
+    return _WALKERS[k][1]
 
 
 def _build(fam, weight):
