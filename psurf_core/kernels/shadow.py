@@ -3,7 +3,7 @@ boxes, emitter quads and triangle meshes.
 
 :func:`blocker_table` packs :class:`~psurf_core.geometry.Blockers` into :class:`BlockerRow`
 records; :func:`shadow_args` adds the triangles' hierarchy (:mod:`.mesh_bvh`, the one
-``Blockers`` itself queries); :func:`occluded` reads them inside the walkers' loops and
+``Blockers`` itself queries); :func:`status` reads them inside the walkers' loops and
 answers ``CLEAR`` or ``BLOCKED``. One compiled copy of the tests of ``geometry.first_hit``, so
 every compiled technique agrees with the numpy path. :func:`status` is the call the walkers
 make. (``DEFER``, "left for ``Blockers.occluded``", is what Trace's rounding-bound tests,
@@ -15,6 +15,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import types
+from numba.core.extending import overload
 
 from ..constants import BOUNDS_PAD, PARALLEL_EPS, SHADOW_EPS
 from ..memo import memo
@@ -128,17 +130,19 @@ def _first_hit(a, d, bl, t_min, t_max):
 
 
 @kernel
-def occluded(a, b, blockers):  # pragma: no cover - compiled
-    """Status of the open segment ``a -> b`` (3-tuples): ``CLEAR`` or ``BLOCKED``. Mirrors
-    :meth:`Blockers.occluded`: the per-blocker box (and quad plane) reject, then the
-    first-hit tests of ``first_hit`` in ``(SHADOW_EPS, |b - a| - SHADOW_EPS)``, the
-    triangles' through their hierarchy when a mesh's box meets the segment.
-    ``blockers``: :func:`shadow_args`.
+def occluded(a, b, rows):  # pragma: no cover - compiled
+    """Status of the open segment ``a -> b`` (3-tuples) against the non-mesh blockers:
+    ``CLEAR``, ``BLOCKED``, or ``DEFER`` when a mesh's box meets it (then
+    :func:`mesh_occluded` decides). Mirrors :meth:`Blockers.occluded`: the per-blocker box
+    (and quad plane) reject, then the first-hit tests of ``first_hit`` in
+    ``(SHADOW_EPS, |b - a| - SHADOW_EPS)``. ``rows``: the flat :func:`blocker_table`.
 
     Compiled once as a function of its own (not inlined): a copy per call site in every
-    walker tripled the compile time, and a call costs little beside the tests.
+    walker tripled the compile time, and a call costs little beside the tests. It takes the
+    one table, not :func:`shadow_args`' three: each array passed to a compiled call is
+    reference-counted per call, and three cost ``planes`` 28 % of its pass on ``area.toml``
+    (``benchmarks/before_after.py``, 2026-12-04).
     """
-    rows, nodes, tris = blockers
     near = False
     mesh = False
     for k in range(rows.shape[0]):
@@ -149,35 +153,89 @@ def occluded(a, b, blockers):  # pragma: no cover - compiled
                 mesh = True
     if not near:
         return CLEAR
+    if mesh:
+        return DEFER
+    return _blocked(a, b, rows)
+
+
+@inline
+def _direction(a, b):
+    """``|b - a|`` and the unit direction, as ``Blockers.occluded`` computes them."""
     v0, v1, v2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     length = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     nrm = length if length > 0 else 1.0
-    d = (v0 / nrm, v1 / nrm, v2 / nrm)
+    return length, (v0 / nrm, v1 / nrm, v2 / nrm)
+
+
+@inline
+def _blocked(a, b, rows):
+    """``BLOCKED`` if a sphere, box or quad is hit in ``(SHADOW_EPS, |b - a| - SHADOW_EPS)``,
+    else ``CLEAR``."""
+    length, d = _direction(a, b)
     for k in range(rows.shape[0]):
         bl = load(rows, k, BlockerRow)
         if bl.kind != MESH and _first_hit(a, d, bl, SHADOW_EPS, length - SHADOW_EPS):
             return BLOCKED
-    if mesh and any_hit(a, d, SHADOW_EPS, length - SHADOW_EPS, nodes, tris):
-        return BLOCKED
     return CLEAR
 
 
-@inline
+@kernel
+def mesh_occluded(a, b, rows, nodes, tris):  # pragma: no cover - compiled
+    """Status of a segment whose box meets a mesh's (:func:`occluded` said ``DEFER``): the
+    other blockers, then the triangles through their hierarchy (:mod:`.mesh_bvh`)."""
+    if _blocked(a, b, rows) == BLOCKED:
+        return BLOCKED
+    length, d = _direction(a, b)
+    return BLOCKED if any_hit(a, d, SHADOW_EPS, length - SHADOW_EPS, nodes, tris) else CLEAR
+
+
 def status(a, b, blockers):
-    """:func:`occluded`, or ``CLEAR`` without a call when the scene has no blockers."""
-    if blockers[0].shape[0] == 0:
-        return CLEAR
-    return occluded(a, b, blockers)
+    """The status of segment ``a -> b`` (3-tuples), ``CLEAR`` or ``BLOCKED``, in compiled
+    code (the walkers' visibility twins call it; the implementation is
+    :func:`_status_impl`). ``blockers``: :func:`shadow_args`."""
+    raise NotImplementedError("kernels.shadow.status runs in compiled code only")
+
+
+@overload(status, inline="always")
+def _status_impl(a, b, blockers):
+    """:func:`occluded` (``CLEAR`` without a call when the scene has no blockers), then, where
+    the scene has triangles (``blockers`` the tuple of :func:`shadow_args`),
+    :func:`mesh_occluded` for a segment a mesh's box meets. Two implementations chosen by
+    the type of ``blockers``: the tuple is read in the walkers' innermost loop, and its
+    arrays' reference counts cost ``planes`` 12 % of a pass on ``area.toml`` against the
+    table alone (``benchmarks/before_after.py``, 2026-12-04), so a scene without triangles
+    passes the table alone."""
+    if isinstance(blockers, types.Array):
+        def table_only(a, b, blockers):  # pragma: no cover - compiled
+            if blockers.shape[0] == 0:
+                return CLEAR
+            return occluded(a, b, blockers)
+
+        return table_only
+
+    def with_meshes(a, b, blockers):  # pragma: no cover - compiled
+        rows = blockers[0]
+        if rows.shape[0] == 0:
+            return CLEAR
+        st = occluded(a, b, rows)
+        if st == DEFER:
+            return mesh_occluded(a, b, rows, blockers[1], blockers[2])
+        return st
+
+    return with_meshes
 
 
 def shadow_args(blockers):
-    """What :func:`occluded` takes: the flat :func:`blocker_table` and the triangles'
-    hierarchy ``(rows, nodes, triangles)`` (the hierarchy ``Blockers`` answers its numpy
-    callers with, so both paths give one verdict), or ``None`` when the blockers carry no
-    bounds (then the numpy path runs). Built once per ``blockers``."""
+    """What :func:`status` takes: the flat :func:`blocker_table` alone, or, where the scene
+    has triangles, with their hierarchy ``(rows, nodes, triangles)`` (the hierarchy
+    ``Blockers`` answers its numpy callers with, so both paths give one verdict); ``None``
+    when the blockers carry no bounds (then the numpy path runs). Built once per
+    ``blockers``."""
     tab = blocker_table(blockers)
     if tab is None:
         return None
+    if blockers.triangles.shape[0] == 0:
+        return memo(blockers, "shadow args", lambda: flat(tab))
     return memo(blockers, "shadow args", lambda: (flat(tab), *blockers.mesh_hierarchy()))
 
 
