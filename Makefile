@@ -76,8 +76,8 @@ bench-quick: $(STAMP)
 	$(VPY) benchmarks/run.py --quick
 
 # psurf vs Mitsuba 3's volpath at equal wall time on every bundled scene -> out/vs_mitsuba.json
-# and out/vs_mitsuba.md (benchmarks/vs_mitsuba.py; ~1.5 h: 14 reference parts x 300 s, cached in
-# out/vs_mitsuba/refs, and 9 cases x 2 x 30 s). Installs the bench extra (Mitsuba from PyPI) and,
+# and out/vs_mitsuba.md (benchmarks/vs_mitsuba.py; ~1.75 h: 17 reference parts x 300 s, cached in
+# out/vs_mitsuba/refs, and 11 cases x 2 x 30 s). Installs the bench extra (Mitsuba from PyPI) and,
 # as root, Debian's libllvm19 when no libLLVM >= 17 is there (drjit's LLVM backend aborts on
 # LLVM 15/16; without LLVM the scalar variant runs). Never part of make test.
 # bench-mitsuba-quick: a few seconds per side, for checking the tool only (not a result).
