@@ -119,8 +119,9 @@ def build(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 # --------------------------------------------------------------------------- compiled
 @inline
-def _slab(o, d, lo, hi):
-    """Entry and exit of one axis's slab (``geometry.ray_box``)."""
+def slab(o, d, lo, hi):
+    """Entry and exit of one axis's slab (``geometry.ray_box``; ``kernels.shadow``'s box test
+    too)."""
     inv = 1.0 / (PARALLEL_EPS if abs(d) < PARALLEL_EPS else d)
     ta = (lo - o) * inv
     tb = (hi - o) * inv
@@ -130,9 +131,9 @@ def _slab(o, d, lo, hi):
 @inline
 def _meets_box(o, d, node, t_min, t_max):
     """Does the ray's interval ``[t_min, t_max]`` meet the node's (padded) box?"""
-    e0, x0 = _slab(o[0], d[0], node.lo[0], node.hi[0])
-    e1, x1 = _slab(o[1], d[1], node.lo[1], node.hi[1])
-    e2, x2 = _slab(o[2], d[2], node.lo[2], node.hi[2])
+    e0, x0 = slab(o[0], d[0], node.lo[0], node.hi[0])
+    e1, x1 = slab(o[1], d[1], node.lo[1], node.hi[1])
+    e2, x2 = slab(o[2], d[2], node.lo[2], node.hi[2])
     te, tx = max(e0, e1, e2, t_min), min(x0, x1, x2, t_max)
     return te <= tx
 

@@ -22,7 +22,7 @@ from ..constants import BOUNDS_PAD, PARALLEL_EPS, SHADOW_EPS
 from ..memo import memo
 from ..records import Vec, flat, load, table
 from .jit import inline, kernel
-from .mesh_bvh import any_hit
+from .mesh_bvh import any_hit, slab
 
 #: Shadow-segment status.
 CLEAR, BLOCKED, DEFER = 0, 1, 2
@@ -63,15 +63,6 @@ class BlockerRow(NamedTuple):
 
 
 @inline
-def _slab(o, d, lo, hi):
-    """Entry and exit of one axis's slab (``geometry.ray_box``)."""
-    inv = 1.0 / (PARALLEL_EPS if abs(d) < PARALLEL_EPS else d)
-    ta = (lo - o) * inv
-    tb = (hi - o) * inv
-    return min(ta, tb), max(ta, tb)
-
-
-@inline
 def _near(a, b, bl):
     """Does segment ``a -> b`` meet blocker ``bl``'s padded box (and, for a quad, cross its
     plane within the segment's ends)?"""
@@ -108,9 +99,9 @@ def _first_hit(a, d, bl, t_min, t_max):
             return np.isfinite(t) and t > t_min and t < t_max
         return False
     if bl.kind == BOX:  # geometry.ray_box
-        te0, tx0 = _slab(a[0], d[0], bl.p[0], bl.e1[0])
-        te1, tx1 = _slab(a[1], d[1], bl.p[1], bl.e1[1])
-        te2, tx2 = _slab(a[2], d[2], bl.p[2], bl.e1[2])
+        te0, tx0 = slab(a[0], d[0], bl.p[0], bl.e1[0])
+        te1, tx1 = slab(a[1], d[1], bl.p[1], bl.e1[1])
+        te2, tx2 = slab(a[2], d[2], bl.p[2], bl.e1[2])
         te, tx = max(te0, te1, te2), min(tx0, tx1, tx2)
         if te < tx:
             t = te if te > t_min else tx
