@@ -187,12 +187,8 @@ class Blockers:
         )
 
     def mesh_hierarchy(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(nodes, triangles)`` of the triangles' hierarchy (``kernels.mesh_bvh``; empty
-        tables without triangles): what the compiled shadow tests walk."""
-        if self.engine is None:
-            from .kernels import mesh_bvh
-
-            return mesh_bvh.build(np.zeros((0, 3, 3)))
+        """``(nodes, triangles)`` of the triangles' hierarchy (``kernels.mesh_bvh``;
+        only for blockers with triangles): what the compiled shadow tests walk."""
         return self.engine.nodes, self.engine.tris
 
     def first_hit(self, o, d, t_min=None, t_max=None) -> np.ndarray:

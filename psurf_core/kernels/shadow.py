@@ -146,7 +146,8 @@ def occluded(a, b, rows):  # pragma: no cover - compiled
         return CLEAR
     if mesh:
         return DEFER
-    return _blocked(a, b, rows)
+    length, d = _direction(a, b)
+    return _blocked(a, d, length, rows)
 
 
 @inline
@@ -159,10 +160,9 @@ def _direction(a, b):
 
 
 @inline
-def _blocked(a, b, rows):
-    """``BLOCKED`` if a sphere, box or quad is hit in ``(SHADOW_EPS, |b - a| - SHADOW_EPS)``,
-    else ``CLEAR``."""
-    length, d = _direction(a, b)
+def _blocked(a, d, length, rows):
+    """``BLOCKED`` if a sphere, box or quad is hit along ``a + t d`` in
+    ``(SHADOW_EPS, length - SHADOW_EPS)``, else ``CLEAR``."""
     for k in range(rows.shape[0]):
         bl = load(rows, k, BlockerRow)
         if bl.kind != MESH and _first_hit(a, d, bl, SHADOW_EPS, length - SHADOW_EPS):
@@ -174,9 +174,9 @@ def _blocked(a, b, rows):
 def mesh_occluded(a, b, rows, nodes, tris):  # pragma: no cover - compiled
     """Status of a segment whose box meets a mesh's (:func:`occluded` said ``DEFER``): the
     other blockers, then the triangles through their hierarchy (:mod:`.mesh_bvh`)."""
-    if _blocked(a, b, rows) == BLOCKED:
+    length, d = _direction(a, b)  # once for both tests
+    if _blocked(a, d, length, rows) == BLOCKED:
         return BLOCKED
-    length, d = _direction(a, b)
     return BLOCKED if any_hit(a, d, SHADOW_EPS, length - SHADOW_EPS, nodes, tris) else CLEAR
 
 
