@@ -36,7 +36,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks import extras  # noqa: E402
+from benchmarks import bench_compare, extras  # noqa: E402
 from benchmarks.stages import steady, trace_rate  # noqa: E402
 from psurf_core.render import PHOTON_BATCH  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
@@ -79,7 +79,13 @@ def main(argv=None) -> int:
                     help="small sizes: 2000 photons, 3 reps, 10^5 memory photons, no scaling, "
                          "no process comparison")
     ap.add_argument("--out", default="out/bench.json")
+    ap.add_argument("--compare", default=None, metavar="PREVIOUS.json",
+                    help="the run to compare the headline with (default: --out's file as it "
+                         "was before this run, when there is one)")
     args = ap.parse_args(argv)
+    previous = bench_compare.load_previous(args.compare or args.out)
+    if args.compare and previous is None:
+        ap.error(f"--compare {args.compare}: no such file, or not a bench.json")
     if args.quick:
         args.photons, args.reps, args.memory_photons = 2000, 3, 100_000
         args.scaling, args.parallel_passes = "", 0
@@ -152,8 +158,14 @@ def main(argv=None) -> int:
         for m in runs:
             print(f"peak RSS {m['peak_rss_bytes'] / 2**20:.0f} MiB: one planes pass, "
                   f"{m['photons']} photons, 256x192, {m['rows_rendered']} rows rendered")
+    if previous is not None:
+        rows = bench_compare.compare(out, previous)
+        print(bench_compare.report(rows, previous))
+        out["against_previous"] = {"command": previous.get("command"), "rows": rows}
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=2, default=float))
+    tmp = Path(args.out).with_suffix(".json.part")  # whole or not at all
+    tmp.write_text(json.dumps(out, indent=2, default=float))
+    tmp.replace(args.out)
     print(f"wrote {args.out}")
     return 0
 
