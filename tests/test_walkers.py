@@ -134,8 +134,13 @@ def test_walkers_find_hits_and_nonzero_values_somewhere():
         assert np.count_nonzero(vals[:, 0] == 0) > 0, name
 
 
-@pytest.mark.parametrize("spec", ["paper-multi", "paper-single"])
-@pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
+# Each family once and each kind of shadow argument once (the table alone, the tuple with
+# triangles) in make test; the two other pairs, ~40 s of compilation each on a fresh clone,
+# in make test-slow.
+@pytest.mark.parametrize("name, spec", [
+    ("area_occluder", "paper-single"), ("mesh_light", "paper-multi"),
+    pytest.param("area_occluder", "paper-multi", marks=pytest.mark.slow),
+    pytest.param("mesh_light", "paper-single", marks=pytest.mark.slow)])
 def test_accumulating_walker_adds_what_it_would_emit(name, spec):
     scene, blockers, rays, paths = _setup(SCENES[[p.stem for p in SCENES].index(name)], True)
     ctx = PassContext(scene, blockers, 0.0, 0, 1500)
