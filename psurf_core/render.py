@@ -134,7 +134,7 @@ def photon_pass(
             record.paths.append(paths)
         for group, full_group in estimator.sets:
             # A member with a share sweeps the batch's first photons (alone: all of them).
-            used = {id(t): _photons_used(t, len(paths)) if len(group) > 1 else len(paths)
+            used = {id(t): photons_used(t, len(paths)) if len(group) > 1 else len(paths)
                     for t in group}
             mis = None
             if len(group) > 1:
@@ -169,7 +169,7 @@ def photon_pass(
     return out
 
 
-def _photons_used(tech: Technique, n: int) -> int:
+def photons_used(tech: Technique, n: int) -> int:
     """Photons of a batch of ``n`` that ``tech`` sweeps: the first ``round(share n)`` (at
     least one), all of them for a technique alone or with share 1."""
     if tech.share >= 1.0:

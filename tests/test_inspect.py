@@ -150,3 +150,28 @@ def test_member_primitives_pass_through_the_hit(name, spec):
                 assert len(hits) and np.min(np.abs(hits.s - s)) < 1e-6, (mname, hits.s, s)
                 checked += 1
     assert checked >= 2 * len(order)
+
+
+@pytest.mark.parametrize("spec", ["fast-multi", "mis:planes+cone-short@0.3"])
+def test_members_with_a_share_weigh_with_sample_counts(spec):
+    """A member that sweeps a share ``n_i`` of the photons (``NAME@0.3``, the ``fast-*``
+    presets) has the balance weight with sample counts ``n_i Q_i / sum_j n_j Q_j`` (at most 1)
+    and stands for all the photons: its contribution is ``value w / (n_i photons spp)``."""
+    scene = load_scene(SCENES / "area_occluder.toml")
+    settings = RenderSettings(photons=400)
+    ins = inspect_pixel(scene, spec, SEED, PASS, PIXEL, settings)
+    t = ins.table
+    assert ins.sum_matches and len(t) > 0
+    assert np.all((t.mis_weight >= 0) & (t.mis_weight <= 1))
+    n = settings.photons * settings.spp
+    assert np.allclose(t.value * (t.mis_weight / t.share)[:, None] / n, t.contribution,
+                       rtol=1e-9, atol=1e-300)
+    partial = t.share < 1
+    assert np.any(partial) and np.all(t.share[partial] < 0.5)
+    # The reconstructed path's member weights: the same sample counts, summing to 1.
+    for k in t.by_contribution()[:4]:
+        r = reconstruct_hit(ins, int(k))
+        names = [m[0] for m in r["members"]]
+        w = np.array([m[2] for m in r["members"]])
+        assert np.isclose(w.sum(), 1.0)
+        assert np.isclose(w[names.index(r["technique"])], t.mis_weight[k], rtol=1e-12)

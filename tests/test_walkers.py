@@ -28,7 +28,7 @@ from psurf_core.kernels import spans as kspans
 from psurf_core.kernels import walk as kwalk
 from psurf_core.kernels.fused import MisSet, fused_pass
 from psurf_core.mis import mis_weights
-from psurf_core.render import RenderSettings, _photons_used, render_pass, stage_chunks
+from psurf_core.render import RenderSettings, photons_used, render_pass, stage_chunks
 from psurf_core.scene_io import load_scene
 from psurf_core.techniques import REGISTRY, get_technique
 from psurf_core.techniques.base import PassContext
@@ -181,10 +181,10 @@ def test_compiled_mis_weights_equal_numpy(spec, name):
     for group, full in est.sets:
         if len(group) < 2:
             continue
-        shares = np.array([_photons_used(m, len(paths)) / len(paths) if m in group else 0.0
+        shares = np.array([photons_used(m, len(paths)) / len(paths) if m in group else 0.0
                            for m in full])
         for tech in group:
-            prims = tech.create(paths.subset(np.arange(_photons_used(tech, len(paths)))), ctx)
+            prims = tech.create(paths.subset(np.arange(photons_used(tech, len(paths)))), ctx)
             for hits, _, w in fused_pass(tech, prims, paths, rays, ctx,
                                          MisSet(group, full, est.weighting, shares)):
                 ref = mis_weights(tech, full, est.weighting, hits, prims, paths, rays, ctx,

@@ -11,8 +11,10 @@ Units of the hit table (spec section 1: ``X_p`` is the per-photon contribution):
 
 * ``value`` is the technique's Evaluate output ``X = f / (q |n . psi|)`` for the hit's photon,
   before the MIS weight and before the ``1 / (photons * spp)`` normalisation;
-* ``contribution = mis_weight * value / (photons * spp)``: the hit's share of the pixel's value
-  in this pass (what the renderer summed, to the last bit);
+* ``contribution = mis_weight * value / (share * photons * spp)``: the hit's share of the
+  pixel's value in this pass (what the renderer summed, to the last bit); ``share`` is the
+  fraction of the photons the hit's MIS member swept (``NAME@0.3``; 1 otherwise), which
+  ``mis_weight`` counts as a sample count;
 * ``f = value * |n . psi|``: the contribution before the Jacobian (``f / q``), NaN for the kernel
   baselines, which have no surface normal.
 """
@@ -27,7 +29,7 @@ from ..constants import NEAR_SINGULAR
 from ..estimators import Estimator, parse_estimator
 from ..geometry import blockers_of
 from ..mis import member_densities, weights_from_densities
-from ..render import PassRecord, RenderSettings, kernel_radius, render_pass
+from ..render import PassRecord, RenderSettings, kernel_radius, photons_used, render_pass
 from ..scene import Scene
 from ..techniques.base import Hits, PassContext, Primitives, Technique, dot, fields_of
 
@@ -68,9 +70,14 @@ class HitTable:
     value : (N, 3) float
         Per-photon Evaluate output (see the module docstring).
     mis_weight : (N,) float
-        1 for a technique used alone.
+        The balance (or power) weight with sample counts, ``n_i Q_i / sum_j n_j Q_j``; 1 for
+        a technique used alone.
+    share : (N,) float
+        ``n_i``, the share of the batch's photons the hit's member swept (``NAME@0.3``);
+        1 for a technique alone or a member without a share.
     contribution : (N, 3) float
-        Share of the pixel's pass value; the rows sum to it.
+        Share of the pixel's pass value, ``value * mis_weight / (share * photons * spp)``;
+        the rows sum to it.
     f : (N, 3) float
         ``value * |n . psi|`` (NaN without a normal).
     near_singular : (N,) bool
@@ -93,6 +100,7 @@ class HitTable:
     n_dot_psi: np.ndarray
     value: np.ndarray
     mis_weight: np.ndarray
+    share: np.ndarray
     contribution: np.ndarray
     f: np.ndarray
     near_singular: np.ndarray
@@ -281,11 +289,16 @@ def inspect_pixel(scene: Scene, estimator, seed: int, pass_index: int, pixel_xy,
         gi, group = groups[name]
         prims, paths = rec.prims[(name, b)], rec.paths[b]
         ctx = PassContext(scene, blockers, radii[name], pass_index, settings.max_pairs)
+        share = 1.0
         if len(group) > 1:
             raw = tech.evaluate(hits, prims, paths, rays, ctx)
             r = tech.reconstruct(hits, prims, paths, rays, ctx)
-            w = weights_from_densities(member_densities(r, group, ctx), est.weighting)
-            w = w[[i for i, m in enumerate(group) if m is tech][0]]
+            # The sample counts of render_pass: member j swept a share n_j of the batch.
+            shares = np.array([photons_used(m, len(paths)) / len(paths) for m in group])
+            me = [i for i, m in enumerate(group) if m is tech][0]
+            w = weights_from_densities(member_densities(r, group, ctx), est.weighting,
+                                       shares)[me]
+            share = float(shares[me])
         else:
             raw, w = val_w, np.ones(len(hits))
         normal = _scaled_normals(tech, hits, prims, paths, rays, ctx)
@@ -301,7 +314,8 @@ def inspect_pixel(scene: Scene, estimator, seed: int, pass_index: int, pixel_xy,
             K=prims.K[hits.prim], ray=hits.ray, s=hits.s,
             point=rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray], psi=rays.d[hits.ray],
             normal=normal,
-            n_dot_psi=ndp, value=raw, mis_weight=w, contribution=val_w / norm,
+            n_dot_psi=ndp, value=raw, mis_weight=w, share=np.full(len(hits), share),
+            contribution=val_w / norm,
             f=raw * ndp[:, None],
             near_singular=np.isfinite(ndp) & (ndp < NEAR_SINGULAR),
         ))
