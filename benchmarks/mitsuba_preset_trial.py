@@ -38,7 +38,7 @@ def register(single: str, multi: str) -> str:
     """Register ``trial-SINGLE-MULTI`` (two groups) and return its name."""
     name = f"trial-{single}-{multi}"
     s, m = GROUPS["single"][single], GROUPS["multi"][multi]
-    E.PRESETS[name] = E._preset(lambda: [s(), m()])
+    E.PRESETS[name] = E._preset(lambda kinds: [s(kinds) if s is E._fast_single else s(), m()])
     return name
 
 

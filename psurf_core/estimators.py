@@ -240,19 +240,42 @@ def _paper_multi():
                  ("plane-t1t2", "plane-t1t3", "plane-t2t3", "cone", "cylinder"))
 
 
-def _fast_single():
-    """Single scattering tuned for equal time (docs/study.md, docs/vs_mitsuba.md): an area
-    light's three single-scattering planes with the two swept along the ray short; a mesh
-    light's sphere, cone and short disk (its triangles are small, so the planes built on them
-    are tiny and rarely hit: on ``mesh_light`` ``fast-single`` had 6x ``paper-single``'s
-    relMSE with the planes, 0.8x with these); a point light's sphere, short cone and disk."""
+#: ``fast-single``'s shares of the single-scattering disk and sphere for area lights, where
+#: the scene has no point (disk) or point / mesh (sphere) light that wants them on every
+#: photon. Measured 2026-12-04 (docs/study.md, "Area lights at K = 1"): beside the three
+#: planes they bring the relVar (the relMSE's noise part) to 0.25-0.34x the planes' alone at
+#: equal CPU time on four area-light scenes, with the Var within 0.94-1.26x.
+AREA_DISK_SHARE, AREA_SPHERE_SHARE = 0.45, 0.15
+
+ALL_KINDS = ("point", "area", "mesh")
+
+
+def _fast_single(kinds=ALL_KINDS):
+    """Single scattering tuned for equal time (docs/study.md, docs/vs_mitsuba.md), by light
+    kind, for a scene whose lights are of ``kinds``:
+
+    * an area light: its three single-scattering planes (the two swept along the ray
+      short), the disk on :data:`AREA_DISK_SHARE` and the sphere on
+      :data:`AREA_SPHERE_SHARE` of the photons (the planes alone are heavy-tailed in the
+      dim pixels that a relMSE weighs);
+    * a mesh light: the sphere, cone and short disk (its triangles are small, so the planes
+      built on them are tiny and rarely hit: on ``mesh_light`` ``fast-single`` had 6x
+      ``paper-single``'s relMSE with the planes, 0.8x with these);
+    * a point light: the sphere, short cone and disk.
+
+    A technique is one member of the set, with one share: where a point (disk) or a point or
+    mesh light (sphere) shares the scene with an area light, the area light's disk or sphere
+    sweeps every photon with theirs.
+    """
     point, area, mesh = ("point",), ("area",), ("mesh",)
+    disk = f"ss-disk@{1 if 'point' in kinds else AREA_DISK_SHARE:g}"
+    sphere = f"ss-sphere@{1 if 'point' in kinds or 'mesh' in kinds else AREA_SPHERE_SHARE:g}"
     return (*(_only(_check_member(n), area) for n in ("ss-plane-uv", "ss-plane-ut-short",
                                                      "ss-plane-vt-short")),
-            _only(get_technique("ss-sphere"), point + mesh),
+            _only(_check_member(sphere), point + mesh + area),
             _only(get_technique("ss-cone-short"), point),
             _only(get_technique("ss-cone"), mesh),
-            _only(get_technique("ss-disk"), point),
+            _only(_check_member(disk), point + area),
             _only(_check_member("ss-disk-short"), mesh))
 
 
@@ -265,9 +288,12 @@ def _fast_multi():
 
 
 def _preset(groups_fn):
+    """A preset whose groups ``groups_fn(kinds)`` may depend on the kinds of the scene's
+    lights (all kinds without a scene)."""
     def build(spec: str, scene: Scene | None) -> Estimator:
         groups, notes = [], []
-        for g in groups_fn():
+        kinds = ALL_KINDS if scene is None else tuple(sorted({lt.kind for lt in scene.lights}))
+        for g in groups_fn(kinds):
             kept, n = _applicable(list(g), scene, spec) if scene is not None else (list(g), ())
             groups.append(tuple(kept))
             notes.extend(n)
@@ -280,12 +306,12 @@ def register_presets() -> None:
     """Install the presets: the paper's (``paper-*``: all long techniques, every member on
     every photon) and the ones tuned for equal time (``fast-*``: short members and sample
     counts where the study measured them to pay), all with the balance heuristic."""
-    PRESETS["paper-single"] = _preset(lambda: [_paper_single()])
-    PRESETS["paper-multi"] = _preset(lambda: [_paper_multi()])
-    PRESETS["paper-full"] = _preset(lambda: [_paper_single(), _paper_multi()])
-    PRESETS["fast-single"] = _preset(lambda: [_fast_single()])
-    PRESETS["fast-multi"] = _preset(lambda: [_fast_multi()])
-    PRESETS["fast-full"] = _preset(lambda: [_fast_single(), _fast_multi()])
+    PRESETS["paper-single"] = _preset(lambda kinds: [_paper_single()])
+    PRESETS["paper-multi"] = _preset(lambda kinds: [_paper_multi()])
+    PRESETS["paper-full"] = _preset(lambda kinds: [_paper_single(), _paper_multi()])
+    PRESETS["fast-single"] = _preset(lambda kinds: [_fast_single(kinds)])
+    PRESETS["fast-multi"] = _preset(lambda kinds: [_fast_multi()])
+    PRESETS["fast-full"] = _preset(lambda kinds: [_fast_single(kinds), _fast_multi()])
 
 
 register_presets()
