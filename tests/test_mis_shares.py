@@ -99,6 +99,10 @@ def test_allocated_set_with_a_numpy_member_is_unbiased():
     # point light together): make test-slow.
     pytest.param("mesh_light+point", (1, 1), "fast-single", "paper-single",
                  marks=pytest.mark.slow),
+    # An area light beside a point light: the disk and the sphere sweep every photon of
+    # both (estimators._fast_single), the area light's planes only its own.
+    pytest.param("study_area+point", (1, 1), "fast-single", "paper-single",
+                 marks=pytest.mark.slow),
 ])
 def test_fast_presets_agree_with_the_papers(name, k, fast, paper):
     """The presets tuned for equal time (short members, sample counts, per-light members)
