@@ -99,9 +99,10 @@ def report(rows: list[dict], previous: dict, tolerance: float = TOLERANCE) -> st
     load = previous.get("machine", {}).get("load_average", [float("nan")])[0]
     shift = rows[0]["shift"] if rows else 1.0
     lines = [f"\nagainst the previous run ({previous.get('command', '?')}, load average "
-             f"{load:.2f}): new / previous; the figures ran at {shift:.2f}x their previous "
-             f"speed at the median (the machine's drift); '<< worse' more than {100 * tolerance:.0f} % "
-             "below that, '< slower' more than that below the previous run"]
+             f"{load:.2f}): new / previous; the figures ran at {shift:.2f}x their "
+             f"previous speed at the median (the machine's drift); '<< worse' more than "
+             f"{100 * tolerance:.0f} % below that, '< slower' more than that below the "
+             "previous run"]
     for r in rows:
         flag = "  << worse" if r["worse"] else ("  < slower" if r["slower"] else "")
         lines.append(f"  {r['figure']:<40} {r['new']:10.3g} {r['previous']:10.3g} "
