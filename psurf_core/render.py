@@ -169,6 +169,12 @@ def photon_pass(
     return out
 
 
+def member_shares(group, n: int) -> np.ndarray:
+    """(J,) float: the sample count of each member of an MIS ``group`` in a batch of ``n``
+    photons (the share :func:`photons_used` sweeps), as the MIS weights use it."""
+    return np.array([photons_used(m, n) / n for m in group])
+
+
 def photons_used(tech: Technique, n: int) -> int:
     """Photons of a batch of ``n`` that ``tech`` sweeps: the first ``round(share n)`` (at
     least one), all of them for a technique alone or with share 1."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mis import member_densities, weights_from_densities
-from ..render import photons_used
+from ..render import member_shares
 from ..trace import PhotonPaths
 
 __all__ = ["member_primitives", "reconstruct_hit"]
@@ -82,7 +82,7 @@ def reconstruct_hit(inspection, k: int) -> dict:
     if len(group) > 1:
         q = member_densities(rec, group, ctx)[:, 0]
         # With the sample counts of render_pass (the table's mis_weight).
-        shares = np.array([photons_used(m, len(paths)) / len(paths) for m in group])
+        shares = member_shares(group, len(paths))
         w = weights_from_densities(q[:, None], inspection.estimator.weighting, shares)[:, 0]
         out["members"] = [(m.name, float(q[j]), float(w[j])) for j, m in enumerate(group)]
     else:

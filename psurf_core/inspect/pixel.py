@@ -29,7 +29,7 @@ from ..constants import NEAR_SINGULAR
 from ..estimators import Estimator, parse_estimator
 from ..geometry import blockers_of
 from ..mis import member_densities, weights_from_densities
-from ..render import PassRecord, RenderSettings, kernel_radius, photons_used, render_pass
+from ..render import PassRecord, RenderSettings, kernel_radius, member_shares, render_pass
 from ..scene import Scene
 from ..techniques.base import Hits, PassContext, Primitives, Technique, dot, fields_of
 
@@ -294,7 +294,7 @@ def inspect_pixel(scene: Scene, estimator, seed: int, pass_index: int, pixel_xy,
             raw = tech.evaluate(hits, prims, paths, rays, ctx)
             r = tech.reconstruct(hits, prims, paths, rays, ctx)
             # The sample counts of render_pass: member j swept a share n_j of the batch.
-            shares = np.array([photons_used(m, len(paths)) / len(paths) for m in group])
+            shares = member_shares(group, len(paths))
             me = [i for i, m in enumerate(group) if m is tech][0]
             w = weights_from_densities(member_densities(r, group, ctx), est.weighting,
                                        shares)[me]
