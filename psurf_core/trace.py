@@ -24,7 +24,8 @@ Two implementations, side by side, with the same names:
   (:mod:`psurf_core.trace_buffers`).
 
 Both draw the same random numbers from the generator (the same calls, sizes and order) and
-leave ``cos``, ``sin`` and ``log1p`` to numpy. ``tests/test_trace_reference.py`` holds them
+turn them into azimuths and flights with :mod:`psurf_core.variates` (``+ - * /`` only, so
+numpy and numba round alike). ``tests/test_trace_reference.py`` holds them
 bit-identical on every bundled scene; ``tests/test_trace_identity.py`` holds both to the
 frozen output of 2026-11-22.
 

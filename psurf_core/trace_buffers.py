@@ -38,7 +38,8 @@ class Workspace:
     x0, w1, beta0 : (n, 3) float
         Light points, first directions, emitted weights (W).
     r : (3 n,) float
-        One depth's variates: phase cosine, azimuth (then its cosine), flight.
+        One depth's variates: phase cosine, azimuth (then its cosine), flight (then its
+        length).
     sin : (n,) float
         Sine of the azimuth.
     u : (n,) float

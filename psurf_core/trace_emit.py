@@ -1,7 +1,8 @@
 """Trace's emission, numpy reference: where photons start and which way they leave.
 
 The samplers of :mod:`psurf_core.sampling` written from their variates (the caller draws the
-random numbers, computes ``cos``/``sin`` of the azimuths, and passes them), so that each has a
+random numbers, computes ``cos``/``sin`` of the azimuths with
+:func:`psurf_core.variates.cos_sin_turn`, and passes them), so that each has a
 compiled scalar twin of the same name in :mod:`psurf_core.trace_emit_compiled` with the same
 operations in the same order; and :func:`emit`, which draws the variates of a batch and
 applies them. ``direction_about`` also scatters photons at every later vertex
@@ -14,6 +15,7 @@ import numpy as np
 
 from . import sampling
 from .scene import AreaLight, MeshLight, PointLight, Scene
+from .variates import cos_sin_turn
 
 
 def direction_about(axis, cos_theta, cos_phi, sin_phi):
@@ -149,25 +151,23 @@ def emit(scene: Scene, rng: np.random.Generator, n: int) -> dict:
         beta[sel] = lt.power_rgb / pmf[li]
         if isinstance(lt, PointLight):
             r = rng.random(2 * m)
-            phi = 2.0 * np.pi * r[m:]
             x0[sel], normal[sel] = lt.position, lt.axis
-            w1[sel] = uniform_direction(r[:m], np.cos(phi), np.sin(phi))
+            w1[sel] = uniform_direction(r[:m], *cos_sin_turn(r[m:]))
         elif isinstance(lt, AreaLight):
             r = rng.random(4 * m)
-            phi = 2.0 * np.pi * r[3 * m :]
             nl = np.broadcast_to(lt.normal, (m, 3))
             uv[sel] = r[: 2 * m].reshape(m, 2)
             x0[sel] = parallelogram_point(lt.corner, lt.edge_u, lt.edge_v, uv[sel])
             normal[sel] = nl
-            w1[sel] = cosine_direction(nl, r[2 * m : 3 * m], np.cos(phi), np.sin(phi))
+            w1[sel] = cosine_direction(nl, r[2 * m : 3 * m], *cos_sin_turn(r[3 * m :]))
         elif isinstance(lt, MeshLight):
             k = _discrete(lt.areas / lt.area, rng, m)
             r = rng.random(4 * m)
-            phi = 2.0 * np.pi * r[3 * m :]
             tri[sel] = k
             uv[sel], x0[sel] = triangle_point(lt.triangles[k], r[:m], r[m : 2 * m])
             normal[sel] = lt.normals[k]
-            w1[sel] = cosine_direction(normal[sel], r[2 * m : 3 * m], np.cos(phi), np.sin(phi))
+            w1[sel] = cosine_direction(normal[sel], r[2 * m : 3 * m],
+                                       *cos_sin_turn(r[3 * m :]))
         else:  # pragma: no cover - the scene loader admits no other light
             raise TypeError(f"unknown light {lt!r}")
     return dict(light=light, light_pmf=pmf[light], light_uv=uv, tri=tri, light_normal=normal,

@@ -1,7 +1,7 @@
 """Trace's emission, compiled: the twin of each formula of :mod:`psurf_core.trace_emit`
 (same name, same IEEE operations in the same order; a (3,) vector is a 3-tuple), the
 per-photon emission loops, and :func:`emit`, which draws exactly what ``trace_emit.emit``
-draws (``cos``/``sin`` stay numpy's, computed in place: :func:`azimuth`).
+draws (the azimuths' ``cos``/``sin`` by ``variates.cos_sin_turn``'s twin, in the loops).
 """
 
 from __future__ import annotations
@@ -10,8 +10,11 @@ import numpy as np
 
 from . import trace_buffers as buffers
 from . import trace_emit as ref_emit
+from . import (
+    variates,
+    variates_compiled,  # noqa: F401 - registers the twins the loops call
+)
 from .kernels.jit import kernel, twin
-from .kernels.threads import in_pieces, thread_count
 from .scene import AreaLight, MeshLight, PointLight
 
 
@@ -84,15 +87,16 @@ def search_right(cdf, u):  # pragma: no cover - compiled
 # Each kernel writes every field of its light's photons (rows ``rows[i]``, or ``i`` when the
 # light emits all of them): x0, w1, light_normal, beta (W), light_uv, tri.
 @kernel
-def emit_point(rows, whole, u_z, cos_phi, sin_phi, position, axis, beta_l, x0, w1, normal,
-               beta, uv, tri):  # pragma: no cover - compiled
+def emit_point(rows, whole, u_z, u_phi, position, axis, beta_l, x0, w1, normal, beta, uv,
+               tri):  # pragma: no cover - compiled
     """A point light's photons: its position, ``uniform_direction``, its axis as the normal.
 
     Parameters
     ----------
     rows : (M,) int
     whole : bool
-    u_z, cos_phi, sin_phi : (M,) float
+    u_z, u_phi : (M,) float
+        Variates of the polar cosine and the azimuth (turns: ``variates.cos_sin_turn``).
     position, axis, beta_l : (3,) float
         ``beta_l``: the light's power over its pick probability (W).
     x0, w1, normal, beta : (N, 3) float
@@ -102,7 +106,8 @@ def emit_point(rows, whole, u_z, cos_phi, sin_phi, position, axis, beta_l, x0, w
     """
     for i in range(u_z.shape[0]):
         p = i if whole else rows[i]
-        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.uniform_direction(u_z[i], cos_phi[i], sin_phi[i])
+        c, s = variates.cos_sin_turn(u_phi[i])
+        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.uniform_direction(u_z[i], c, s)
         for c in range(3):
             x0[p, c], normal[p, c], beta[p, c] = position[c], axis[c], beta_l[c]
         uv[p, 0] = uv[p, 1] = 0.0
@@ -110,8 +115,8 @@ def emit_point(rows, whole, u_z, cos_phi, sin_phi, position, axis, beta_l, x0, w
 
 
 @kernel
-def emit_area(rows, whole, u, u_c, cos_phi, sin_phi, corner, edge_u, edge_v, nl, beta_l, x0,
-              w1, normal, beta, uv, tri):  # pragma: no cover - compiled
+def emit_area(rows, whole, u, u_c, u_phi, corner, edge_u, edge_v, nl, beta_l, x0, w1, normal,
+              beta, uv, tri):  # pragma: no cover - compiled
     """An area light's photons: ``parallelogram_point`` at ``u``, ``cosine_direction``
     about its normal ``nl``. Parameters as :func:`emit_point`; ``u`` (M, 2) float."""
     c, eu, ev = ((corner[0], corner[1], corner[2]), (edge_u[0], edge_u[1], edge_u[2]),
@@ -120,8 +125,8 @@ def emit_area(rows, whole, u, u_c, cos_phi, sin_phi, corner, edge_u, edge_v, nl,
     for i in range(u.shape[0]):
         p = i if whole else rows[i]
         x0[p, 0], x0[p, 1], x0[p, 2] = ref_emit.parallelogram_point(c, eu, ev, (u[i, 0], u[i, 1]))
-        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.cosine_direction(n, u_c[i], cos_phi[i],
-                                                                 sin_phi[i])
+        cp, sp = variates.cos_sin_turn(u_phi[i])
+        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.cosine_direction(n, u_c[i], cp, sp)
         for k in range(3):
             normal[p, k], beta[p, k] = n[k], beta_l[k]
         uv[p, 0], uv[p, 1] = u[i, 0], u[i, 1]
@@ -129,8 +134,8 @@ def emit_area(rows, whole, u, u_c, cos_phi, sin_phi, corner, edge_u, edge_v, nl,
 
 
 @kernel
-def emit_mesh(rows, whole, k, u_s, u_r, u_c, cos_phi, sin_phi, triangles, normals, beta_l, x0,
-              w1, normal, beta, uv, tri):  # pragma: no cover - compiled
+def emit_mesh(rows, whole, k, u_s, u_r, u_c, u_phi, triangles, normals, beta_l, x0, w1,
+              normal, beta, uv, tri):  # pragma: no cover - compiled
     """A mesh light's photons: ``triangle_point`` on triangle ``k[i]``, ``cosine_direction``
     about its normal. Parameters as :func:`emit_point`; ``k`` (M,) int, ``triangles``
     (F, 3, 3) and ``normals`` (F, 3) float."""
@@ -142,8 +147,8 @@ def emit_mesh(rows, whole, k, u_s, u_r, u_c, cos_phi, sin_phi, triangles, normal
         (uv[p, 0], uv[p, 1]), (x0[p, 0], x0[p, 1], x0[p, 2]) = ref_emit.triangle_point(
             t, u_s[i], u_r[i])
         nk = (normals[f, 0], normals[f, 1], normals[f, 2])
-        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.cosine_direction(nk, u_c[i], cos_phi[i],
-                                                                 sin_phi[i])
+        cp, sp = variates.cos_sin_turn(u_phi[i])
+        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.cosine_direction(nk, u_c[i], cp, sp)
         for c in range(3):
             normal[p, c], beta[p, c] = nk[c], beta_l[c]
         tri[p] = f
@@ -196,27 +201,6 @@ def lights(scene) -> tuple:
     return pmf, _cdf(pmf), per
 
 
-def azimuth(r, sin_out=None, threads: int = 1):
-    """``cos`` and ``sin`` of the azimuth ``2 pi r`` (numpy's), in place of ``r`` and in
-    ``sin_out`` (a new array when omitted); on ``threads`` threads (elementwise: the values
-    do not depend on it)."""
-    s = np.empty_like(r) if sin_out is None else sin_out
-    in_pieces(lambda a, b: azimuth_range(r, s, a, b), r.shape[0], threads, ELEMENTWISE_MIN)
-    return r, s
-
-
-def azimuth_range(r, s, a: int, b: int) -> None:
-    """:func:`azimuth` on elements ``a .. b - 1``: ``cos(2 pi r)`` in place of ``r``,
-    ``sin(2 pi r)`` into ``s`` (numpy's, elementwise)."""
-    ra = np.multiply(r[a:b], 2.0 * np.pi, out=r[a:b])
-    np.sin(ra, out=s[a:b])
-    np.cos(ra, out=ra)
-
-
-#: Elements per thread below which an elementwise step runs on one thread.
-ELEMENTWISE_MIN = 4096
-
-
 #: ``emit``'s arrays: name -> (shape after the photon axis, dtype).
 FIELDS = {"light": ((), np.intp), "light_pmf": ((), np.float64), "light_uv": ((2,), np.float64),
           "tri": ((), np.int64), "light_normal": ((3,), np.float64), "x0": ((3,), np.float64),
@@ -246,9 +230,6 @@ def emit(scene, rng, n: int, out: dict | None = None) -> dict:
     np.take(pmf, light, out=e["light_pmf"])
     fields = tuple(e[k] for k in ("x0", "w1", "light_normal", "beta", "light_uv", "tri"))
     one = len(scene.lights) == 1  # every photon from light 0: no rows to select
-    # numpy's float64 sin/cos are scalar libm calls here (no AVX-512): most of emission's
-    # time; elementwise, so the values do not depend on the thread count.
-    threads = thread_count()
     for li, (lt, args) in enumerate(zip(scene.lights, per, strict=True)):
         rows = np.empty(0, dtype=np.intp) if one else np.flatnonzero(light == li)
         m = n if one else rows.size
@@ -256,15 +237,14 @@ def emit(scene, rng, n: int, out: dict | None = None) -> dict:
             continue
         if isinstance(lt, PointLight):
             r = rng.random(2 * m)
-            emit_point(rows, one, r[:m], *azimuth(r[m:], threads=threads), *args, *fields)
+            emit_point(rows, one, r[:m], r[m:], *args, *fields)
         elif isinstance(lt, AreaLight):
             r = rng.random(4 * m)
-            emit_area(rows, one, r[: 2 * m].reshape(m, 2), r[2 * m : 3 * m],
-                      *azimuth(r[3 * m :], threads=threads), *args, *fields)
+            emit_area(rows, one, r[: 2 * m].reshape(m, 2), r[2 * m : 3 * m], r[3 * m :], *args,
+                      *fields)
         else:
             k = _discrete(args[0], rng, m, np.empty(m, dtype=np.intp))
             r = rng.random(4 * m)
-            emit_mesh(rows, one, k, r[:m], r[m : 2 * m], r[2 * m : 3 * m],
-                      *azimuth(r[3 * m :], threads=threads),
+            emit_mesh(rows, one, k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], r[3 * m :],
                       *args[1:], *fields)
     return e

@@ -20,6 +20,7 @@ from .constants import MAX_TRACE_DEPTH, PARALLEL_EPS, ROULETTE_START
 from .geometry import Blockers, inside_box
 from .scene import Scene
 from .trace_emit import direction_about, emit
+from .variates import cos_sin_turn, neg_log_complement
 
 __all__ = ["LOOKBACK", "PhotonPaths", "assemble", "roulette_survival", "step", "trace_depth",
            "trace_numpy"]
@@ -131,14 +132,15 @@ def phase_cosine(g, u):
     return sampling.sample_phase_cos(g, u)
 
 
-def free_flight(log1p_neg_u, sigma_t):
-    """Free-flight lengths ``t = -log1p(-u) / sigma_t`` (scene units; pdf
-    ``sigma_t exp(-sigma_t t)``, ``sampling.sample_free_flight``).
+def free_flight(u, sigma_t):
+    """Free-flight lengths ``t = -log(1 - u) / sigma_t`` (scene units; pdf
+    ``sigma_t exp(-sigma_t t)``, ``sampling.sample_free_flight``), the logarithm by
+    :func:`psurf_core.variates.neg_log_complement`.
 
     Parameters
     ----------
-    log1p_neg_u : (M,) float
-        ``log1p(-u)`` of the variates (numpy's ``log1p``).
+    u : (M,) float
+        Uniform variates in ``[0, 1)``.
     sigma_t : float
         Extinction (1 / scene unit).
 
@@ -146,7 +148,7 @@ def free_flight(log1p_neg_u, sigma_t):
     -------
     (M,) float
     """
-    return -log1p_neg_u / sigma_t
+    return neg_log_complement(u) / sigma_t
 
 
 def advance(x, w, t):
@@ -302,11 +304,10 @@ def trace_numpy(scene: Scene, n_photons: int, rng: np.random.Generator, blockers
             beta = scattered_weight(beta[keep], q, med.albedo)
             m = photon.size
             r = rng.random(3 * m)  # the phase cosine, the azimuth, the flight: one call
-            phi = 2.0 * np.pi * r[m : 2 * m]
-            w = direction_about(w, phase_cosine(med.phase.g, r[:m]), np.cos(phi), np.sin(phi))
-            t = free_flight(np.log1p(-r[2 * m :]), med.sigma_t)
+            w = direction_about(w, phase_cosine(med.phase.g, r[:m]), *cos_sin_turn(r[m : 2 * m]))
+            t = free_flight(r[2 * m :], med.sigma_t)
         else:
-            t = free_flight(np.log1p(-rng.random(n_photons)), med.sigma_t)
+            t = free_flight(rng.random(n_photons), med.sigma_t)
         s, ok = step(photon, x, w, beta, t, oks[-1], box, blockers)
         steps.append(s)
         oks.append(ok)

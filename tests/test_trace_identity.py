@@ -17,7 +17,10 @@ EPYC differed from the machine that froze the data in ``t``, ``x`` and ``clip`` 
 most 3.3e-14 relative), while any change a code edit makes is many orders larger. The large
 runs keep exact SHA-256 digests of their integer fields and, of each floating-point field,
 sums that a tolerance can compare (:func:`_summary`), written on 2026-12-03 from the output
-whose integer fields matched the 2026-11-22 digests exactly.
+whose integer fields matched the 2026-11-22 digests exactly. On 2026-12-04 the azimuths'
+``cos``/``sin`` and the flights' logarithm became ``psurf_core.variates``' polynomials (in
+both implementations): the floating-point fields moved by rounding only, inside the
+tolerance, and the integer fields and draws did not change.
 
 Regenerate (only for an intended change of Trace's output):
 ``.venv/bin/python tests/test_trace_identity.py --write``.

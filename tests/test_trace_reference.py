@@ -99,18 +99,16 @@ def test_workspace_reuse(monkeypatch):
 
 @pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
 def test_threads_change_nothing(monkeypatch, name):
-    """The depth kernel, the elementwise steps and ``assemble`` cut into pieces on two
-    threads (thresholds lowered so that a small batch is cut) give the reference's bytes and
-    leave the generator in the same state."""
+    """The depth kernel, ``assemble`` and the shadow verdicts cut into pieces on two threads
+    (thresholds lowered so that a small batch is cut) give the reference's bytes and leave
+    the generator in the same state."""
     sc = dense(name)
     monkeypatch.setattr(trace_compiled, "thread_count", lambda: 2)
     monkeypatch.setattr(trace_compiled, "ASSEMBLE_MIN", 16)
     monkeypatch.setattr(trace_compiled, "STEP_MIN", 16)
-    monkeypatch.setattr(trace_emit_compiled, "ELEMENTWISE_MIN", 16)
-    monkeypatch.setattr(trace_emit_compiled, "thread_count", lambda: 2)  # emission's azimuth
     monkeypatch.setattr(trace_shadow, "SHADE_MIN", 16)
     pieces, cut = [], {}
-    for mod in (trace_compiled, trace_emit_compiled, trace_shadow):
+    for mod in (trace_compiled, trace_shadow):
         def spy(fn, n, th, lo=1, real=mod.in_pieces, key=mod.__name__):
             cut[key] = cut.get(key, False) or (th == 2 and n >= 2 * lo)
             pieces.append((n, th, lo))
@@ -118,10 +116,8 @@ def test_threads_change_nothing(monkeypatch, name):
 
         monkeypatch.setattr(mod, "in_pieces", spy)
     _assert_same(name, _both(sc, 3000, 5))
-    # The depth steps' elementwise parts and assemble, emission's azimuth and the shadow
-    # verdicts were each cut into pieces on two threads.
-    assert cut == dict.fromkeys((trace_compiled.__name__, trace_emit_compiled.__name__,
-                                 trace_shadow.__name__), True), pieces
+    # assemble and the shadow verdicts were each cut into pieces on two threads.
+    assert cut == dict.fromkeys((trace_compiled.__name__, trace_shadow.__name__), True), pieces
 
 
 def test_reused_outputs(monkeypatch):
@@ -187,10 +183,10 @@ def _points(corner, eu, ev, uv, tri, out_p, out_b, out_t):
 
 
 @njit
-def _scalars(g, u, lg, st, q, albedo, ok, out_mu, out_t, out_keep):
+def _scalars(g, u, st, q, albedo, ok, out_mu, out_t, out_keep):
     for i in range(u.shape[0]):
         out_mu[i] = ref.phase_cosine(g, u[i])
-        out_t[i] = ref.free_flight(lg[i], st)
+        out_t[i] = ref.free_flight(u[i], st)
         out_keep[i] = ref.survives(ok[i], u[i], q)
 
 
@@ -259,12 +255,11 @@ def test_scalar_twins(g, q):
     rng = np.random.default_rng(2)
     m = 3000
     u = np.r_[[0.0, 1 - 2**-53, 0.5, min(q, 0.5), np.nextafter(q, 0)], rng.random(m - 5)]
-    lg = np.log1p(-u)
     ok = rng.random(m) < 0.8
     mu, t, keep = np.empty(m), np.empty(m), np.empty(m, dtype=bool)
-    _scalars(g, u, lg, 1.3, q, 0.8, ok, mu, t, keep)
+    _scalars(g, u, 1.3, q, 0.8, ok, mu, t, keep)
     assert _same(mu, ref.phase_cosine(g, u))
-    assert _same(t, ref.free_flight(lg, 1.3))
+    assert _same(t, ref.free_flight(u, 1.3))
     assert _same(keep, ref.survives(ok, u, q))
 
 
