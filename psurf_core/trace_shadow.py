@@ -34,10 +34,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constants import BOUNDS_PAD, PARALLEL_EPS, SHADOW_EPS
+from .constants import PARALLEL_EPS, SHADOW_EPS
 from .geometry import Blockers
 from .kernels.jit import inline, kernel
-from .kernels.shadow import BLOCKED, BOX, CLEAR, DEFER, QUAD, SPHERE, BlockerRow, blocker_table
+from .kernels.shadow import (  # meets: the box reject, one home with the walkers'
+    BLOCKED,
+    BOX,
+    CLEAR,
+    DEFER,
+    QUAD,
+    SPHERE,
+    BlockerRow,
+    blocker_table,
+    meets,
+)
 from .kernels.threads import in_pieces
 from .records import flat, load
 
@@ -234,20 +244,6 @@ def quad_hit(a, d, ed, t_max, et_max, corner, n, eu, ev, m):  # pragma: no cover
         euv = abs(m0j) * er0 + abs(m1j) * er1 + 3.0 * U * (abs(r0 * m0j) + abs(r1 * m1j))
         res = and3(res, and3(less(0.0, 0.0, uv, euv), less(uv, euv, 1.0, 0.0)))
     return res
-
-
-@inline
-def meets(a, b, bl):  # pragma: no cover - compiled
-    """Does the box of segment ``a -> b`` meet blocker ``bl``'s box padded by
-    ``BOUNDS_PAD``? ``Blockers.occluded``'s first reject, the same comparisons. (``bl`` a
-    :class:`BlockerRow`: an array handed to an inlined function in a loop costs numba a
-    reference count per call.)"""
-    lo = (bl.lo[0] - BOUNDS_PAD, bl.lo[1] - BOUNDS_PAD, bl.lo[2] - BOUNDS_PAD)
-    hi = (bl.hi[0] + BOUNDS_PAD, bl.hi[1] + BOUNDS_PAD, bl.hi[2] + BOUNDS_PAD)
-    # & rather than `and`: no branches (they mispredict on segments near the boxes)
-    return ((min(a[0], b[0]) <= hi[0]) & (max(a[0], b[0]) >= lo[0])
-            & (min(a[1], b[1]) <= hi[1]) & (max(a[1], b[1]) >= lo[1])
-            & (min(a[2], b[2]) <= hi[2]) & (max(a[2], b[2]) >= lo[2]))
 
 
 @inline
