@@ -62,7 +62,7 @@ browser:
 	fi
 
 test: $(STAMP) browser
-	$(VPY) -m pytest -q -m "not slow" -n 2 --dist loadfile
+	$(VPY) -m pytest -q -m "not slow" -n 2 --dist loadfile --no-loadscope-reorder
 
 test-slow: $(STAMP) browser
 	$(VPY) -m pytest -q -m slow

@@ -138,8 +138,8 @@ def photon_pass(
                     for t in group}
             mis = None
             if len(group) > 1:
-                shares = np.array([used.get(id(m), 0) / len(paths) for m in full_group])
-                mis = MisSet(group, full_group, estimator.weighting, shares)
+                mis = MisSet(group, full_group, estimator.weighting,
+                             member_shares(group, len(paths), full_group))
             for tech in group:
                 ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, pass_index),
                                   pass_index, settings.max_pairs)
@@ -169,10 +169,14 @@ def photon_pass(
     return out
 
 
-def member_shares(group, n: int) -> np.ndarray:
-    """(J,) float: the sample count of each member of an MIS ``group`` in a batch of ``n``
-    photons (the share :func:`photons_used` sweeps), as the MIS weights use it."""
-    return np.array([photons_used(m, n) / n for m in group])
+def member_shares(group, n: int, over=None) -> np.ndarray:
+    """(J,) float: the sample count of each member of an MIS set in a batch of ``n`` photons,
+    as the MIS weights use it: the share :func:`photons_used` sweeps for the members of
+    ``group`` (those on), 0 for the others. ``over``: the members to list, in order (default
+    ``group``; ``render_pass`` lists the ``full_group`` its kernels are compiled for)."""
+    on = {id(m) for m in group}
+    return np.array([photons_used(m, n) / n if id(m) in on else 0.0
+                     for m in (group if over is None else over)])
 
 
 def photons_used(tech: Technique, n: int) -> int:

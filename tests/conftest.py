@@ -24,3 +24,23 @@ def app(tmp_path, monkeypatch):
 
     with window_app(tmp_path, monkeypatch) as a:
         yield a
+
+
+#: Test files that take longest on a fresh clone (numba compiling their kernels), longest
+#: first (``--durations`` of a cold ``make test``, 2026-12-04: ``test_walkers.py`` ~9 min
+#: of one worker, the window's screenshots 100 s in their first fixture, ...).
+#: ``make test`` runs files on two workers (``--dist loadfile``), each taking the next file
+#: when free; started last, a long file is the run's tail while the other worker idles.
+#: xdist's default order (most tests first) is not the longest first: the Makefile passes
+#: ``--no-loadscope-reorder`` so that this order holds.
+LONGEST_FIRST = ("test_walkers.py", "test_ui_screenshots.py", "test_lecture.py",
+                 "test_photon_surfaces_multi_unbiased.py", "test_multi_mesh_light.py",
+                 "test_twins.py", "test_tutorials.py", "test_web.py",
+                 "test_panel_screenshots.py", "test_window_controls.py", "test_cli.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files of :data:`LONGEST_FIRST` first, in that order; the rest after, in their
+    order (a stable sort: the tests of a file keep theirs)."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
