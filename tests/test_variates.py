@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 from numba import njit
 
-from psurf_core import variates
-from psurf_core import variates_compiled  # noqa: F401 - registers the twins
+from psurf_core import (
+    variates,
+    variates_compiled,  # noqa: F401 - registers the twins
+)
 
 #: 2 pi to 36 digits, for the extended-precision reference (numpy's long double: 64-bit
 #: mantissa on x86; where long double is double the accuracy bounds below are skipped).
