@@ -106,8 +106,8 @@ def emit_point(rows, whole, u_z, u_phi, position, axis, beta_l, x0, w1, normal, 
     """
     for i in range(u_z.shape[0]):
         p = i if whole else rows[i]
-        c, s = variates.cos_sin_turn(u_phi[i])
-        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.uniform_direction(u_z[i], c, s)
+        cp, sp = variates.cos_sin_turn(u_phi[i])
+        w1[p, 0], w1[p, 1], w1[p, 2] = ref_emit.uniform_direction(u_z[i], cp, sp)
         for c in range(3):
             x0[p, c], normal[p, c], beta[p, c] = position[c], axis[c], beta_l[c]
         uv[p, 0] = uv[p, 1] = 0.0
