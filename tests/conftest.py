@@ -44,3 +44,15 @@ def pytest_collection_modifyitems(config, items):
     order (a stable sort: the tests of a file keep theirs)."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
+def pytest_configure(config):
+    """With ``PSURF_COMPILE_LOG=<dir>``, record every top-level numba compilation (kernel,
+    argument types, seconds, test, worker) into ``<dir>/<worker>.tsv``: what a cold
+    ``make test`` spends compiling, and what two workers compile twice
+    (``benchmarks/compile_log.py`` sums it)."""
+    out = __import__("os").environ.get("PSURF_COMPILE_LOG")
+    if out:
+        from compile_log_support import install
+
+        install(config, out)
