@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .kernels.jit import ctrl_c_kept, inline, kernel, twin
+from .kernels.jit import ctrl_c_kept, inline, kernel, scalar, twin
 from .kernels.vec import vec
 from .pdfs import (
     KIND_CODE,
@@ -330,14 +330,14 @@ def photon_row(x, w, t, lights, ph, K, st, g):
                    zero, pdf)
 
 
-@inline
+@scalar
 def at_hit(row, o, psi, s):
     """``row`` on the camera ray ``o + s psi``: ``psi`` and ``x0 = y(s)``."""
     x0 = (o[0] + s * psi[0], o[1] + s * psi[1], o[2] + s * psi[2])
     return set_field(set_field(row, "psi", psi), "x0", x0)
 
 
-@inline
+@scalar
 def with_t1(row, t1):
     """``row.with_(t1=t1)`` with its pdf."""
     e, f = flight_pdf(t1, row.st)
@@ -345,14 +345,14 @@ def with_t1(row, t1):
                      set_field(set_field(row.pdf, "e1", e), "t1", f))
 
 
-@inline
+@scalar
 def with_t2(row, t2):
     e, f = flight_pdf(t2, row.st)
     return set_field(set_field(row, "t2", t2), "pdf",
                      set_field(set_field(row.pdf, "e2", e), "t2", f))
 
 
-@inline
+@scalar
 def with_w2(row, w2):
     """``row.with_(w2=w2)`` with the pdf of ``w2`` (set ``w1`` after it: its pdf is about
     ``w2``)."""
@@ -360,14 +360,14 @@ def with_w2(row, w2):
     return set_field(set_field(row, "w2", w2), "pdf", set_field(row.pdf, "w2", p2))
 
 
-@inline
+@scalar
 def with_t3(row, t3):
     e, f = flight_pdf(t3, row.st)
     return set_field(set_field(row, "t3", t3), "pdf",
                      set_field(set_field(row.pdf, "e3", e), "t3", f))
 
 
-@inline
+@scalar
 def with_w1(row, w1):
     """``row.with_(w1=w1)`` with the pdfs of ``w1`` and ``cos th1``."""
     p1 = direction_pdf(row.K, 1, row.kind, row.axis, row.w2, w1, row.g)
@@ -375,7 +375,7 @@ def with_w1(row, w1):
     return set_field(set_field(row, "w1", w1), "pdf", pdf)
 
 
-@inline
+@scalar
 def with_light_point(row, x1, u, v):
     """``row.with_(x1=x1, uv=(u, v))``: the light vertex moved (single-scattering planes),
     with the light-position pdfs."""

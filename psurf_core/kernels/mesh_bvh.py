@@ -26,7 +26,7 @@ import numpy as np
 
 from ..constants import PARALLEL_EPS
 from ..records import Vec, flat, load, table
-from .jit import inline, kernel
+from .jit import inline, kernel, scalar
 
 #: Triangles per leaf at most.
 LEAF_SIZE = 4
@@ -118,7 +118,7 @@ def build(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- compiled
-@inline
+@scalar
 def slab(o, d, lo, hi):
     """Entry and exit of one axis's slab (``geometry.ray_box``; ``kernels.shadow``'s box test
     too)."""
@@ -128,7 +128,7 @@ def slab(o, d, lo, hi):
     return min(ta, tb), max(ta, tb)
 
 
-@inline
+@scalar
 def _meets_box(o, d, node, t_min, t_max):
     """Does the ray's interval ``[t_min, t_max]`` meet the node's (padded) box?"""
     e0, x0 = slab(o[0], d[0], node.lo[0], node.hi[0])
@@ -138,7 +138,7 @@ def _meets_box(o, d, node, t_min, t_max):
     return te <= tx
 
 
-@inline
+@scalar
 def _triangle_t(o, d, tr, t_min, t_max):
     """``geometry.ray_triangles_first``'s Moller-Trumbore test of one triangle, operation
     for operation: the hit distance in ``(t_min, t_max)``, else ``inf``."""

@@ -21,7 +21,7 @@ from numba.core.extending import overload
 from ..constants import BOUNDS_PAD, PARALLEL_EPS, SHADOW_EPS
 from ..memo import memo
 from ..records import Vec, flat, load, table
-from .jit import inline, kernel
+from .jit import inline, kernel, scalar
 from .mesh_bvh import any_hit, slab
 
 #: Shadow-segment status.
@@ -62,7 +62,7 @@ class BlockerRow(NamedTuple):
     gram: tuple[float, float, float, float]
 
 
-@inline
+@scalar
 def meets(a, b, bl):  # pragma: no cover - compiled
     """Does the box of segment ``a -> b`` meet blocker ``bl``'s box padded by
     ``BOUNDS_PAD``? ``Blockers.occluded``'s first reject, the same comparisons. (``bl`` a
@@ -76,7 +76,7 @@ def meets(a, b, bl):  # pragma: no cover - compiled
             & (min(a[2], b[2]) <= hi[2]) & (max(a[2], b[2]) >= lo[2]))
 
 
-@inline
+@scalar
 def _near(a, b, bl):
     """Does segment ``a -> b`` meet blocker ``bl``'s padded box (and, for a quad, cross its
     plane within the segment's ends)?"""
@@ -94,7 +94,7 @@ def _near(a, b, bl):
     return t >= 0.5 * SHADOW_EPS and t <= ln - 0.5 * SHADOW_EPS
 
 
-@inline
+@inline  # too large for LLVM to inline: a call per blocker row (planes 1.09x)
 def _first_hit(a, d, bl, t_min, t_max):
     """Does the ray ``a + t d`` hit sphere / box / quad ``bl`` in ``(t_min, t_max)``?"""
     if bl.kind == SPHERE:  # geometry.ray_sphere
@@ -160,7 +160,7 @@ def occluded(a, b, rows):  # pragma: no cover - compiled
     return _blocked(a, d, length, rows)
 
 
-@inline
+@scalar
 def _direction(a, b):
     """``|b - a|`` and the unit direction, as ``Blockers.occluded`` computes them."""
     v0, v1, v2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]

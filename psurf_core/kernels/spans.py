@@ -19,7 +19,7 @@ import numpy as np
 from ..binning import _NEAR, _SPAN_MARGIN, screen_rects
 from ..memo import memo
 from ..records import Vec
-from .jit import inline, kernel
+from .jit import kernel, scalar
 from .threads import PIECES_PER_THREAD, on_threads, thread_count
 
 
@@ -36,7 +36,7 @@ class CameraRow(NamedTuple):
     height: float
 
 
-@inline
+@scalar
 def _project(x, y, z, cam):
     """``camera.project`` of one point (``cam``: :class:`CameraRow`)."""
     vx, vy, vz = x - cam.position[0], y - cam.position[1], z - cam.position[2]
@@ -48,7 +48,7 @@ def _project(x, y, z, cam):
     return (u + 1.0) * 0.5 * cam.width, (1.0 - w) * 0.5 * cam.height, depth
 
 
-@inline
+@scalar
 def _clip_int(v, hi):  # pragma: no cover - compiled
     """``np.clip(np.nan_to_num(v), 0, hi).astype(int64)`` of one value."""
     if np.isnan(v):
@@ -56,7 +56,7 @@ def _clip_int(v, hi):  # pragma: no cover - compiled
     return int(min(max(v, 0.0), hi))
 
 
-@inline
+@scalar
 def _corner(lo, hi, upper):  # pragma: no cover - compiled
     """One coordinate of a box corner; a non-finite bound stands for -+1e30."""
     if upper:
@@ -184,7 +184,7 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
     return px, py, count, r0, nr
 
 
-@inline
+@scalar
 def _row_range(ymin, ymax, y0, y1):
     """First row and number of rows of a polygon spanning ``[ymin, ymax]`` (with the span
     margin), within the image rows ``[y0, y1)``."""
@@ -193,7 +193,7 @@ def _row_range(ymin, ymax, y0, y1):
     return int(lo), max(int(hi) - int(lo), 0)
 
 
-@inline
+@scalar
 def _cross2(ox, oy, ax, ay, bx, by):
     return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .jit import inline
+from .jit import inline, scalar
 
 
 @inline
@@ -18,29 +18,29 @@ def vec(a):
     return (a[0], a[1], a[2])
 
 
-@inline
+@scalar
 def add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-@inline
+@scalar
 def sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
-@inline
+@scalar
 def scale(k, a):
     """``k a`` (numpy: ``k[:, None] * a``)."""
     return (k * a[0], k * a[1], k * a[2])
 
 
-@inline
+@scalar
 def madd(a, k, b):
     """``a + k b``."""
     return (a[0] + k * b[0], a[1] + k * b[1], a[2] + k * b[2])
 
 
-@inline
+@scalar
 def norm(a):
     """``|a|`` (numpy's ``linalg.norm`` of a row: the square root of the sum in order)."""
     return np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
