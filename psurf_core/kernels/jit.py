@@ -21,6 +21,10 @@ from numba import njit
 from numba.core.extending import overload
 
 from .cache import cached
+from .numba_flags import install as _install_flags
+
+# Before anything compiles: cheaper flag comparisons while numba types a kernel (numba_flags).
+_install_flags()
 
 #: Options of every compiled function: numpy's floating-point model (a division by zero is
 #: inf or NaN, as in the numpy reference, not an exception).
