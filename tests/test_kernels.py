@@ -28,7 +28,7 @@ def test_cache_key_follows_the_sources_a_kernel_inlines(tmp_path):
     # A throwaway copy of the package layout the digest looks for, importing the real one.
     (pkg / "__init__.py").write_text("")
     (pkg / "kernels" / "__init__.py").write_text("")
-    for name in ("cache.py", "jit.py"):
+    for name in ("cache.py", "jit.py", "numba_flags.py"):
         (pkg / "kernels" / name).write_text((ROOT / "psurf_core" / "kernels" / name).read_text())
     (pkg / "fam.py").write_text("from .kernels.jit import inline\n\n@inline\n"
                                 "def density(x):\n    return x * 2.0\n")
