@@ -18,7 +18,8 @@ from pathlib import Path
 
 
 def read(folder: Path) -> list[tuple[str, str, str, str, float, str]]:
-    """Rows ``(worker, test, kernel, key, seconds, argument-types digest)``."""
+    """Rows ``(worker, test, kernel, key, seconds, argument-types digest)`` (the columns
+    ``tests/compile_log_support.py`` writes, after the worker its file is named by)."""
     rows = []
     for f in sorted(folder.glob("*.tsv")):
         for line in f.read_text().splitlines():

@@ -9,6 +9,8 @@ fixture of the same name uses its own (pytest looks in the module first).
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 
@@ -51,7 +53,7 @@ def pytest_configure(config):
     argument types, seconds, test, worker) into ``<dir>/<worker>.tsv``: what a cold
     ``make test`` spends compiling, and what two workers compile twice
     (``benchmarks/compile_log.py`` sums it)."""
-    out = __import__("os").environ.get("PSURF_COMPILE_LOG")
+    out = os.environ.get("PSURF_COMPILE_LOG")
     if out:
         from compile_log_support import install
 
