@@ -265,7 +265,7 @@ def test_images_with_and_without_hits_materialized_agree():
 
     scene = load_scene(SCENES[[p.stem for p in SCENES].index("area_occluder")])
     scene = replace(scene, camera=replace(scene.camera, width=24, height=16))
-    for spec in ("planes", "paper-multi", "mis:cone+hyperboloid", "paper-single"):
+    for spec in ("planes", "paper-multi", "fast-multi", "paper-single"):
         est = parse_estimator(spec, scene)
         a = render_pass(scene, est, 0, 3, RenderSettings(photons=150))
         b = render_pass(scene, est, 0, 3, RenderSettings(photons=150), record=PassRecord())

@@ -7,9 +7,12 @@ path (its scatter count ``K`` and light kind, as ``Technique.can_produce``), eac
 member family's compiled ``density`` on the reconstructed path ``row``
 (:class:`~psurf_core.path_record.PathRow`) and ``n_j`` the share of the pass's photons member
 ``j`` swept (``shares``; see :func:`psurf_core.mis.weights_from_densities`). The members are
-unrolled at compile time (a chain of closures, one per member), so the compiler inlines
-every density into the walker and computes a factor the members share (a pdf, a cross
-product, an exponential) once.
+unrolled at compile time (a chain of closures, one per member). Each member's term is a
+:func:`~.jit.scalar` function shared by every set and walker it appears in (numba types it
+once per process; inlined in numba's IR it was typed again in each of a set's walkers: a
+quarter of ``paper-multi``'s compilation, 2026-12-04); LLVM inlines the terms and their
+densities into the walker all the same, where a factor the members share (a pdf, a cross
+product, an exponential) is computed once.
 
 The shares and whether each member is short are a run-time array (:func:`member_params`):
 a share of 0 switches a member off, so an estimator ``SPEC~A`` (the window's member toggles)
@@ -24,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..pdfs import KIND_CODE
-from .jit import inline
+from .jit import inline, scalar
 
 
 def member_key(tech) -> tuple:
@@ -42,24 +45,44 @@ def member_params(full_group, shares) -> np.ndarray:
         [np.asarray(shares, dtype=float), [float(bool(m.short)) for m in full_group]]))
 
 
-def _member(density, j, min_k, max_k, mask, power):
-    """``(n_j Q_j)^b`` of member ``j`` on ``row`` (0 where it is off or cannot produce the
-    path; ``nan_to_num(|Q|)`` as :func:`psurf_core.mis.member_densities`)."""
+def _member(density, min_k, max_k, mask, power):
+    """``(n Q)^b`` of a member on ``row`` for its share ``n`` and shortness ``short`` (0
+    where it is off or cannot produce the path; ``nan_to_num(|Q|)`` as
+    :func:`psurf_core.mis.member_densities`). A :func:`~.jit.scalar` function, built once
+    per member kind (:func:`member_key`) and heuristic and shared by every set and walker
+    it appears in: numba types it once, where an inlined copy was typed again in each of
+    a set's walkers; LLVM inlines it all the same."""
+    key = (density, min_k, max_k, mask, power)
+    if key not in _TERMS:
+
+        @scalar
+        def q(row, n, short):
+            if n == 0.0:
+                return 0.0
+            if row.K < min_k or (max_k >= 0 and row.K > max_k) or (mask >> row.kind) & 1 == 0:
+                return 0.0
+            v = abs(density(row, short))
+            if not v < np.inf:  # NaN and inf count as 0
+                v = 0.0
+            v = n * v
+            return v * v if power else v
+
+        _TERMS[key] = q
+    return _TERMS[key]
+
+
+#: Member terms by (density, K range, light mask, power) (:func:`_member`).
+_TERMS: dict = {}
+
+
+def _term(q, j):
+    """Member ``j``'s term ``q`` with its share and shortness read from ``params``."""
 
     @inline
-    def q(row, params):
-        n = params[j, 0]
-        if n == 0.0:
-            return 0.0
-        if row.K < min_k or (max_k >= 0 and row.K > max_k) or (mask >> row.kind) & 1 == 0:
-            return 0.0
-        v = abs(density(row, params[j, 1] != 0.0))
-        if not v < np.inf:  # NaN and inf count as 0
-            v = 0.0
-        v = n * v
-        return v * v if power else v
+    def t(row, params):
+        return q(row, params[j, 0], params[j, 1] != 0.0)
 
-    return q
+    return t
 
 
 def _sum(terms):
@@ -97,7 +120,7 @@ _WEIGHTS: dict = {}
 
 
 def _compose(fams, keys, me, power):
-    terms = [_member(f.density, j, *keys[j][3:], power) for j, f in enumerate(fams)]
+    terms = [_term(_member(f.density, *keys[j][3:], power), j) for j, f in enumerate(fams)]
     total, mine = _sum(terms), terms[me]
 
     @inline
