@@ -72,61 +72,62 @@ def _build(fam, weight):
         ``lim``), compact rows from ``na``. Returns the next free full and compact rows and
         the number of hits (occluded ones included: every hit is shaded)."""
         n_hits = 0
-        if i1 <= i0:
-            return n, na, n_hits
-        # The photon's path row, for the MIS weight: built once per primitive (its spans are
-        # consecutive, one per image row), not once per span.
-        last = s_prim[i0]
-        if mis:
-            base = photon_row(px, pw, pt, lights, photon[last], kk[last], medium.sigma_t,
-                              medium.g)
-        for i in range(i0, i1):
+        i = i0
+        while i < i1:
+            # One primitive's spans are consecutive (one per image row): its geometry and,
+            # for the MIS weight, the photon's path row are read once for all of them (one
+            # call site of the inlined ``photon_row``: each site costs its typing again).
             p = s_prim[i]
             G = load(geom, p, Geometry)
-            if mis and p != last:
+            if mis:
                 base = photon_row(px, pw, pt, lights, photon[p], kk[p], medium.sigma_t,
                                   medium.g)
-                last = p
-            base_px = s_row[i] * width
-            for k in range(cs[base_px + s_c0[i]], cs[base_px + s_c1[i]]):
-                ray = load(rt, k, RayRow)
-                rts = roots(G, ray.o, ray.psi)
-                for j in range(n_roots):
-                    s = rts[j]
-                    if not (s > ray.s_min and s < ray.s_max):  # NaN: no root
-                        continue
-                    ok, hit = accept(G, ray.o, ray.psi, s, short)
-                    if not ok:
-                        continue
-                    n_hits += 1
-                    x0 = madd(ray.o, s, ray.psi)
-                    st = visibility(G, x0, hit, medium, blockers)
-                    if st[0] == BLOCKED or st[1] == BLOCKED or st[2] == BLOCKED:
-                        scal = 0.0
-                    else:
-                        scal = contribution(G, ray.psi, s, ray.s_min, hit, short, medium)
-                    w = 1.0
-                    # A blocked hit added to the image adds nothing: its weight is needed
-                    # only where the hit itself is kept (emit).
-                    if mis and (emit or scal != 0.0):
-                        w = w_of(reconstruct(at_hit(base, ray.o, ray.psi, s), G, hit), params)
-                    if emit:
-                        if n >= lim:  # cannot happen: lim is the candidates x roots bound
-                            raise RuntimeError("walker: output capacity exceeded")
-                        o_ray[n] = rid[k]
-                        o_prim[n] = p
-                        o_s[n] = s
-                        store(o_hit, n, hit)
-                        for c in range(3):
-                            o_val[n, c] = G.beta[c] * scal
-                            o_st[n, c] = st[c]
-                        o_w[n] = w
-                        n += 1
-                    elif scal != 0.0:
-                        a_ray[na] = rid[k]
-                        for c in range(3):
-                            a_val[na, c] = (G.beta[c] * scal) * w
-                        na += 1
+            j_end = i + 1
+            while j_end < i1 and s_prim[j_end] == p:
+                j_end += 1
+            for i_span in range(i, j_end):
+                base_px = s_row[i_span] * width
+                for k in range(cs[base_px + s_c0[i_span]], cs[base_px + s_c1[i_span]]):
+                    ray = load(rt, k, RayRow)
+                    rts = roots(G, ray.o, ray.psi)
+                    for j in range(n_roots):
+                        s = rts[j]
+                        if not (s > ray.s_min and s < ray.s_max):  # NaN: no root
+                            continue
+                        ok, hit = accept(G, ray.o, ray.psi, s, short)
+                        if not ok:
+                            continue
+                        n_hits += 1
+                        x0 = madd(ray.o, s, ray.psi)
+                        st = visibility(G, x0, hit, medium, blockers)
+                        if st[0] == BLOCKED or st[1] == BLOCKED or st[2] == BLOCKED:
+                            scal = 0.0
+                        else:
+                            scal = contribution(G, ray.psi, s, ray.s_min, hit, short, medium)
+                        w = 1.0
+                        # A blocked hit added to the image adds nothing: its weight is needed
+                        # only where the hit itself is kept (emit).
+                        if mis and (emit or scal != 0.0):
+                            row = at_hit(base, ray.o, ray.psi, s)
+                            w = w_of(reconstruct(row, G, hit), params)
+                        if emit:
+                            if n >= lim:  # cannot happen: lim is the candidates x roots bound
+                                raise RuntimeError("walker: output capacity exceeded")
+                            o_ray[n] = rid[k]
+                            o_prim[n] = p
+                            o_s[n] = s
+                            store(o_hit, n, hit)
+                            for c in range(3):
+                                o_val[n, c] = G.beta[c] * scal
+                                o_st[n, c] = st[c]
+                            o_w[n] = w
+                            n += 1
+                        elif scal != 0.0:
+                            a_ray[na] = rid[k]
+                            for c in range(3):
+                                a_val[na, c] = (G.beta[c] * scal) * w
+                            na += 1
+            i = j_end
         return n, na, n_hits
 
     return walk
