@@ -48,6 +48,10 @@ CONNECT_TIMEOUT = 10.0
 #: before it gives up with :class:`WorkersLostError`.
 NO_WORKER_TIMEOUT = 30.0
 
+#: Passes a run submits again after a worker loss cancelled them (while workers live), at
+#: most: each loss cancels up to the window of passes in flight.
+RESUBMITS = 64
+
 #: Seconds between checks for live workers while passes are in flight.
 _POLL = 1.0
 
@@ -217,17 +221,35 @@ def render_distributed(
     window = max_in_flight if max_in_flight is not None else 2 * _n_workers(client)
     window = max(1, int(window))
 
-    scene_f = client.scatter(scene, broadcast=True, hash=False)
+    scattered = [client.scatter(scene, broadcast=True, hash=False)]
     if time_budget is not None:
         # Every worker compiles/loads the estimator's compiled kernels before the clock runs.
         client.run(_warm_worker, scene, spec, settings)
 
     timeout = NO_WORKER_TIMEOUT if no_worker_timeout is None else float(no_worker_timeout)
+    retries = [0]
+
+    def resubmit(i: int, e: Exception) -> bool:
+        # A killed worker can take the scattered scene with it: the scheduler then forgets
+        # it and cancels every pass that needs it (dask/distributed#3149), though the other
+        # workers live. Scatter again and resubmit, a bounded number of times.
+        from concurrent.futures import CancelledError
+
+        if not isinstance(e, CancelledError) or retries[0] >= RESUBMITS:
+            return False
+        if _live_workers(client) == 0:
+            return False
+        retries[0] += 1
+        if scattered[0].status != "finished":
+            scattered[0] = client.scatter(scene, broadcast=True, hash=False)
+        return True
+
     try:
         return merge_in_pass_order(
-            lambda i: client.submit(_pass_task, scene_f, spec, i, seed, settings, pure=False),
+            lambda i: client.submit(_pass_task, scattered[0], spec, i, seed, settings,
+                                    pure=False),
             _waiter(client, timeout, acc), acc, window, spec, seed, settings, passes=passes,
-            time_budget=time_budget, on_pass=on_pass)
+            time_budget=time_budget, on_pass=on_pass, resubmit=resubmit)
     except WorkersLostError:
         raise
     except Exception as e:
@@ -265,6 +287,8 @@ def _waiter(client, timeout: float, acc: Welford):
     """``wait_any(futures)`` for :func:`merge_in_pass_order`: returns when one is done, and
     raises :class:`WorkersLostError` once the cluster has had no worker for ``timeout``
     seconds."""
+    from concurrent.futures import CancelledError
+
     from dask.distributed import wait
 
     def wait_any(futures):
@@ -274,6 +298,8 @@ def _waiter(client, timeout: float, acc: Welford):
                 with client.as_current():  # wait() looks for a current client
                     wait(futures, timeout=_POLL, return_when="FIRST_COMPLETED")
                 return
+            except CancelledError:
+                return  # cancelled futures are done: their result() says why, per pass
             except TimeoutError:
                 pass
             if _live_workers(client):

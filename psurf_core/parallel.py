@@ -150,13 +150,15 @@ def render_parallel(
 
 def merge_in_pass_order(submit, wait_any, acc: Welford, window: int, spec: str, seed: int,
                         settings: RenderSettings, *, passes=None, time_budget=None,
-                        on_pass=None) -> RenderResult:
+                        on_pass=None, resubmit=None) -> RenderResult:
     """Keep up to ``window`` passes in flight and add them to ``acc`` in pass order (the
     local pool here, Dask in :mod:`psurf_core.distributed`): the result equals a serial
     render with the same seed, whatever order the passes finish in.
 
     ``submit(i)`` starts pass ``i`` and returns a future; ``wait_any(futures)`` blocks until
-    one of them is done. A worker's exception is re-raised; pending futures are cancelled.
+    one of them is done. A worker's exception is re-raised, unless ``resubmit(i, e)`` (when
+    given) returns True: then pass ``i`` is submitted again (a pass is a function of its
+    index, so its image is the same bits). Pending futures are cancelled on the way out.
     """
     t0 = time.perf_counter()
     done_before = next_i = acc.n
@@ -173,7 +175,14 @@ def merge_in_pass_order(submit, wait_any, acc: Welford, window: int, spec: str, 
             wait_any(list(in_flight.values()))
             for i in sorted(in_flight):
                 if in_flight[i].done():
-                    finished[i] = in_flight.pop(i).result()  # re-raises a worker's exception
+                    try:
+                        finished[i] = in_flight[i].result()  # re-raises a worker's exception
+                    except Exception as e:
+                        if resubmit is None or not resubmit(i, e):
+                            raise
+                        in_flight[i] = submit(i)
+                        continue
+                    del in_flight[i]
             stop = False
             while acc.n in finished:
                 i = acc.n

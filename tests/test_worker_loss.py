@@ -98,6 +98,37 @@ def test_a_worker_killed_mid_run_leaves_the_image_bit_identical(scene):
     np.testing.assert_array_equal(dist.var, single.var)
 
 
+def test_passes_cancelled_with_the_scattered_scene_run_again(scene):
+    """What a killed worker sometimes does (dask/distributed#3149; seen once in ``make test``:
+    "4 Futures cancelled ... already forgotten" although the other worker lived): the
+    scheduler forgets the scene scattered to the workers and cancels every pass in flight.
+    Here the scene's key is cancelled after the first merged pass; the run scatters it again,
+    resubmits the cancelled passes and ends with the single-process image's bits."""
+    from distributed import Future
+
+    single = render(scene, parse_estimator(SPEC, scene), SETTINGS, passes=6, seed=5)
+    cluster, client = cluster_and_client()
+    forgotten = []
+    try:
+        def on_pass(i, acc, elapsed):
+            if i == 0:
+                keys = [k for k in cluster.scheduler.tasks if str(k).startswith("Scene-")]
+                assert len(keys) == 1, keys
+                Future(keys[0], client).cancel()
+                forgotten.extend(keys)
+
+        dist = render_distributed(scene, SPEC, SETTINGS, passes=6, seed=5, client=client,
+                                  on_pass=on_pass, max_in_flight=4)
+        scenes_now = [k for k in cluster.scheduler.tasks if str(k).startswith("Scene-")]
+    finally:
+        client.close()
+        cluster.close()
+    assert forgotten and forgotten[0] not in scenes_now  # a new scatter, not the old one
+    assert dist.passes == 6
+    np.testing.assert_array_equal(dist.mean, single.mean)
+    np.testing.assert_array_equal(dist.var, single.var)
+
+
 def test_no_worker_left_is_a_clear_failure(scene):
     """Two workers without nannies (as ``dask worker --no-nanny`` on other machines would
     be) both killed mid-run: nothing restarts them."""
