@@ -310,11 +310,24 @@ def _vertex(x, ph, j):
 def photon_row(x, w, t, lights, ph, K, st, g):
     """:func:`photon_record` of photon ``ph`` at scatter count ``K`` for one hit, before the
     hit is known (``psi``, ``x0`` zero: :func:`at_hit` sets them). ``x, w, t``:
-    ``PhotonPaths`` arrays; ``lights``: flat :func:`photon_table`."""
+    ``PhotonPaths`` arrays; ``lights``: flat :func:`photon_table`. The arrays are read here
+    (inlined into the walker); the pdfs are computed by :func:`_row_of` from numbers and
+    tuples (typed once per process instead of in every walker)."""
     lt = load(lights, ph, PhotonLight)
     w3, t3 = _segment(x, w, t, ph, K - 3)
     w2, t2 = _segment(x, w, t, ph, K - 2)
     w1, t1 = _segment(x, w, t, ph, K - 1)
+    return _row_of(lt, (w3, w2, w1), (t3, t2, t1), _vertex(x, ph, K - 2), vec(x[ph, K - 1]),
+                   K, st, g)
+
+
+@scalar
+def _row_of(lt, ws, ts, x2, x1, K, st, g):
+    """The :class:`PathRow` of :func:`photon_row` from its photon's light row ``lt``, the
+    directions ``ws = (w3, w2, w1)`` and lengths ``ts = (t3, t2, t1)`` of its last
+    segments and its vertices ``x2, x1``."""
+    w3, w2, w1 = ws
+    t3, t2, t1 = ts
     kind = int(lt.kind)
     axis = lt.axis
     p1 = direction_pdf(K, 1, kind, axis, w2, w1, g)
@@ -325,9 +338,8 @@ def photon_row(x, w, t, lights, ph, K, st, g):
     e3, f3 = flight_pdf(t3, st)
     pdf = PdfsRow(e1, e2, e3, f1, f2, f3, p1, p2, 2.0 * np.pi * p1, puv, pu, pv)
     zero = (0.0, 0.0, 0.0)
-    return PathRow(K, kind, st, g, lt.pk, (lt.u, lt.v), axis, lt.eu, lt.ev,
-                   _vertex(x, ph, K - 2), vec(x[ph, K - 1]), zero, w3, w2, w1, t3, t2, t1,
-                   zero, pdf)
+    return PathRow(K, kind, st, g, lt.pk, (lt.u, lt.v), axis, lt.eu, lt.ev, x2, x1, zero,
+                   w3, w2, w1, t3, t2, t1, zero, pdf)
 
 
 @scalar
