@@ -227,12 +227,17 @@ def render_distributed(
         client.run(_warm_worker, scene, spec, settings)
 
     timeout = NO_WORKER_TIMEOUT if no_worker_timeout is None else float(no_worker_timeout)
-    retries = [0]
+    retries, used = [0], {}
+
+    def submit(i: int):
+        used[i] = scattered[0]
+        return client.submit(_pass_task, scattered[0], spec, i, seed, settings, pure=False)
 
     def resubmit(i: int, e: Exception) -> bool:
         # A killed worker can take the scattered scene with it: the scheduler then forgets
         # it and cancels every pass that needs it (dask/distributed#3149), though the other
-        # workers live. Scatter again and resubmit, a bounded number of times.
+        # workers live. Scatter again (once per loss: the first pass cancelled with the
+        # current copy) and resubmit, a bounded number of times.
         from concurrent.futures import CancelledError
 
         if not isinstance(e, CancelledError) or retries[0] >= RESUBMITS:
@@ -240,14 +245,13 @@ def render_distributed(
         if _live_workers(client) == 0:
             return False
         retries[0] += 1
-        if scattered[0].status != "finished":
+        if used.get(i) is scattered[0]:
             scattered[0] = client.scatter(scene, broadcast=True, hash=False)
         return True
 
     try:
         return merge_in_pass_order(
-            lambda i: client.submit(_pass_task, scattered[0], spec, i, seed, settings,
-                                    pure=False),
+            submit,
             _waiter(client, timeout, acc), acc, window, spec, seed, settings, passes=passes,
             time_budget=time_budget, on_pass=on_pass, resubmit=resubmit)
     except WorkersLostError:
