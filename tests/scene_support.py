@@ -19,8 +19,16 @@ SCENES = sorted(SCENE_DIR.glob("*.toml"))
 SLOW_SCENES = frozenset({"showcase", "study_area", "study_medium", "study_occluder"})
 
 
-def scene_params(scenes=SCENES) -> list:
-    """``scenes`` as ``pytest.param``s with the scene's stem as id; the repeats marked slow."""
-    return [pytest.param(p, id=p.stem,
-                         marks=[pytest.mark.slow] if p.stem in SLOW_SCENES else [])
+#: Within the fast set, the scenes whose light kind, phase function and occluders another fast
+#: scene also has: ``point`` (a point light, isotropic: ``hg`` has a point light, ``area`` the
+#: isotropic phase) and ``mesh_light`` (``dense_mesh_light`` has a mesh light with triangles).
+#: Tests that compare formulas one hit at a time from Python (``test_twins.py``) run them in
+#: make test-slow: ~20-25 s each.
+COVERED_SCENES = frozenset({"point", "mesh_light"})
+
+
+def scene_params(scenes=SCENES, slow=SLOW_SCENES) -> list:
+    """``scenes`` as ``pytest.param``s with the scene's stem as id; those in ``slow`` (the
+    repeats) marked slow."""
+    return [pytest.param(p, id=p.stem, marks=[pytest.mark.slow] if p.stem in slow else [])
             for p in scenes]

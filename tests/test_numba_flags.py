@@ -12,7 +12,9 @@ def _samples():
     c.nrt, c.error_model, c.inline = True, "numpy", "always"
     d = Flags(c)
     d.fastmath = True
-    return a, b, c, d
+    e = Flags()
+    e.nrt = Flags().nrt  # set explicitly to its default: equal to ``a``, another ``_values``
+    return a, b, c, d, e
 
 
 def test_installed_and_equal_to_numbas_methods():
@@ -23,6 +25,7 @@ def test_installed_and_equal_to_numbas_methods():
         assert hash(f) == nf.ORIGINAL["__hash__"](f)
         for g in flags:
             assert (f == g) == nf.ORIGINAL["__eq__"](f, g)
-    a, b, c, d = flags
+    a, b, c, d, e = flags
     assert b == c and a != b and c != d  # the sample has both outcomes
+    assert a == e and a._values != e._values  # equal through the dicts, not the fast path
     assert nf.equal(a, 3) is NotImplemented

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numba import njit
-from scene_support import scene_params
+from scene_support import COVERED_SCENES, SLOW_SCENES, scene_params
 
 from psurf_core.binning import candidate_pairs
 from psurf_core.camera import camera_rays
@@ -169,7 +169,7 @@ def _candidates(tech, path):
     return scene, blockers, rays, paths, ctx, prims, ray[take], prim[take]
 
 
-@pytest.mark.parametrize("path", scene_params())
+@pytest.mark.parametrize("path", scene_params(slow=SLOW_SCENES | COVERED_SCENES))
 @pytest.mark.parametrize("name", TECHS)
 def test_family_twins_agree_on_a_pass(name, path):
     tech = get_technique(name)

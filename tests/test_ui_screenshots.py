@@ -2,9 +2,9 @@
 
 Every stage of ``ui.views.window`` (and, with two estimators, every image-panel mode) is
 rendered off-screen for two bundled scenes (``point.toml``: one estimator, 1024 x 768;
-``area_occluder.toml``: photon planes beside an MIS set, at 1024 x 768 and 1920 x 1080) at a
-fixed pixel and seed with tiny budgets (200 photons, 2 passes), and compared with
-``tests/baselines/<scene>_<W>x<H>_<stage or mode_NAME>.png`` by SSIM
+``area_occluder.toml``: photon planes beside an MIS set, at 1024 x 768 and 1920 x 1080, the
+large size in make test-slow) at a fixed pixel and seed with tiny budgets (200 photons,
+2 passes), and compared with ``tests/baselines/<scene>_<W>x<H>_<stage or mode_NAME>.png`` by SSIM
 (``skimage.metrics.structural_similarity`` over the RGB channels).
 
 Tolerance: SSIM >= 0.95. The numbers behind each picture are deterministic (seeded passes);
@@ -98,39 +98,57 @@ def _state(case: str):
     return state
 
 
-@pytest.fixture(scope="module")
-def pictures():
-    """Every stage (and mode) of every case at every size, composed into one plotter per size
-    (as the window recomposes: updates and rebuilds)."""
+#: Sizes whose pictures run in make test-slow only (~25 s of off-screen rendering on the idle
+#: machine: composing a stage costs in proportion to the window's pixels).
+SLOW_SIZES = {(1920, 1080)}
+
+
+def _render_group(case: str, size: tuple[int, int]) -> dict:
+    """Every stage (and mode) of ``case`` at ``size``, composed into one plotter (as the
+    window recomposes: updates and rebuilds)."""
     from ui.views._vtk import rendered_image
     from ui.views.panel_modes import MODES
     from ui.views.window import compose, make_plotter
 
     out = {}
-    for case, c in CASES.items():
-        state = _state(case)
+    c = CASES[case]
+    state = _state(case)
+    tag = f"{case}_{size[0]}x{size[1]}"
+    try:
+        plotter = make_plotter(size, off_screen=True)
         try:
-            for size in c["sizes"]:
-                tag = f"{case}_{size[0]}x{size[1]}"
-                plotter = make_plotter(size, off_screen=True)
-                try:
-                    for stage in STAGES:
-                        state.stepper.go(stage)
-                        compose(plotter, state)
-                        out[f"{tag}_{stage}"] = rendered_image(plotter)
-                    if c["modes"]:
-                        state.stepper.go("evaluate")
-                        for mode in MODES:
-                            state.mode = mode
-                            compose(plotter, state)
-                            out[f"{tag}_mode_{mode}"] = rendered_image(plotter)
-                        state.mode = "render"
-                finally:
-                    plotter.close()
+            for stage in STAGES:
+                state.stepper.go(stage)
+                compose(plotter, state)
+                out[f"{tag}_{stage}"] = rendered_image(plotter)
+            if c["modes"]:
+                state.stepper.go("evaluate")
+                for mode in MODES:
+                    state.mode = mode
+                    compose(plotter, state)
+                    out[f"{tag}_mode_{mode}"] = rendered_image(plotter)
+                state.mode = "render"
         finally:
-            state.prog.close()
-            state.inspector.close()
+            plotter.close()
+    finally:
+        state.prog.close()
+        state.inspector.close()
     return out
+
+
+class _Pictures(dict):
+    """The pictures by name, each (case, size) group rendered when one of its names is
+    first asked for: the slow sizes only under make test-slow."""
+
+    def __missing__(self, name: str):
+        case, size = _GROUPS[name]
+        self.update(_render_group(case, size))
+        return self[name]
+
+
+@pytest.fixture(scope="module")
+def pictures():
+    return _Pictures()
 
 
 def _names() -> list:
@@ -140,9 +158,15 @@ def _names() -> list:
     for case, c in CASES.items():
         for size in c["sizes"]:
             tag = f"{case}_{size[0]}x{size[1]}"
-            names += [f"{tag}_{s}" for s in STAGES]
-            names += [f"{tag}_mode_{m}" for m in MODES] if c["modes"] else []
+            group = [f"{tag}_{s}" for s in STAGES]
+            group += [f"{tag}_mode_{m}" for m in MODES] if c["modes"] else []
+            marks = [pytest.mark.slow] if tuple(size) in SLOW_SIZES else []
+            names += [pytest.param(n, id=n, marks=marks) for n in group]
+            _GROUPS.update({n: (case, tuple(size)) for n in group})
     return names
+
+
+_GROUPS: dict[str, tuple[str, tuple[int, int]]] = {}
 
 
 @pytest.mark.parametrize("name", _names())

@@ -87,9 +87,33 @@ def test_every_compiled_family_is_covered():
             "ss-plane-ut-short", "ss-plane-vt"} <= set(NAMES)
 
 
+#: The families checked on scenes with triangles in make test: one per module of visibility
+#: twins (planes, generalized planes, cones, revolutions, single-scattering planes and
+#: cones). Triangles change only the type of the shadow argument every visibility twin hands
+#: to ``kernels.shadow.status``, so each family's walker compiles again for them (~5 s each
+#: on a fresh clone); every family on them runs in make test-slow.
+ON_TRIANGLES = ["plane-t1t2", "plane-t1t3", "cone", "hyperboloid", "ss-plane-uv", "ss-disk"]
+
+
+def _has_triangles(path) -> bool:
+    return blockers_of(load_scene(path)).triangles.shape[0] > 0
+
+
 @pytest.mark.parametrize("pinhole", [True, False], ids=["pinhole", "per-ray-origin"])
 @pytest.mark.parametrize("path", scene_params())
 def test_walker_equals_stages(path, pinhole, monkeypatch):
+    _walker_equals_stages(path, pinhole, monkeypatch,
+                          ON_TRIANGLES if _has_triangles(path) else NAMES)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", [p for p in SCENES if _has_triangles(p)],
+                         ids=lambda p: p.stem)
+def test_every_walker_equals_stages_on_triangles(path, monkeypatch):
+    _walker_equals_stages(path, True, monkeypatch, NAMES)
+
+
+def _walker_equals_stages(path, pinhole, monkeypatch, names):
     scene, blockers, rays, paths = _setup(path, pinhole)
     ctx = PassContext(scene, blockers, 0.0, 0, 1500)  # a small budget: several chunks
     numpy_tests = []  # calls of Blockers.occluded while a walker runs
@@ -97,7 +121,7 @@ def test_walker_equals_stages(path, pinhole, monkeypatch):
     monkeypatch.setattr(Blockers, "occluded",
                         lambda self, *a: numpy_tests.append(1) or real(self, *a))
     covered = 0
-    for name in NAMES:
+    for name in names:
         tech = get_technique(name)
         if not any(tech.applies_to(lt) for lt in scene.lights):
             continue
