@@ -61,7 +61,7 @@ def one(seed):
     stats = {}
     t = time.perf_counter()
     list(kf.fused_pass(tech, prims, paths, rays, ctx, None, emit=False, out=out, stats=stats))
-    return tc, time.perf_counter() - t, stats["hits"]
+    return tc, time.perf_counter() - t, stats["hits"], stats["candidates"]
 
 
 for s in range(3):
@@ -71,13 +71,15 @@ W = []
 C = []
 H = 0
 R = int(sys.argv[4]) if len(sys.argv) > 4 else 20
+N = 0
 for s in range(R):
-    tc, tw, h = one(s)
+    tc, tw, h, nc = one(s)
     W.append(tw)
     C.append(tc)
     H += h
+    N += nc
 print(f"{spec} {n} photons: hits/pass {H / R:.0f}, walk {1e3 * np.median(W):.2f} ms median"
       f" ({1e3 * np.mean(W):.2f} mean), create {1e3 * np.median(C):.2f} ms;"
-      f" hits/s {H / sum(W):.3g}")
+      f" hits/s {H / sum(W):.3g}; candidate pairs/pass {N / R:.0f} ({H / N:.2f} hit a pair)")
 for k, v in T.items():
     print(f"  {k}: {1e3 * v / R:.2f} ms/pass")
