@@ -19,12 +19,13 @@ SCENES = sorted(SCENE_DIR.glob("*.toml"))
 SLOW_SCENES = frozenset({"showcase", "study_area", "study_medium", "study_occluder"})
 
 
-#: Within the fast set, the scenes whose light kind, phase function and occluders another fast
-#: scene also has: ``point`` (a point light, isotropic: ``hg`` has a point light, ``area`` the
-#: isotropic phase) and ``mesh_light`` (``dense_mesh_light`` has a mesh light with triangles).
-#: Tests that compare formulas one hit at a time from Python (``test_twins.py``) run them in
-#: make test-slow: ~20-25 s each.
-COVERED_SCENES = frozenset({"point", "mesh_light"})
+#: Within the fast set, the scenes whose light kind, phase function and occluder types other
+#: fast scenes also have: ``point`` (a point light, isotropic: ``hg`` has a point light,
+#: ``area`` the isotropic phase), ``mesh_light`` (``dense_mesh_light`` has a mesh light with
+#: triangles) and ``area_occluder`` (an area light, HG, a sphere: ``area``, ``hg`` and
+#: ``dense_mesh_light`` have them). Tests that compare formulas one hit at a time from Python
+#: (``test_twins.py``) run them in make test-slow: ~20-26 s each.
+COVERED_SCENES = frozenset({"point", "mesh_light", "area_occluder"})
 
 
 def scene_params(scenes=SCENES, slow=SLOW_SCENES) -> list:
