@@ -221,17 +221,17 @@ def render_distributed(
     window = max_in_flight if max_in_flight is not None else 2 * _n_workers(client)
     window = max(1, int(window))
 
-    scattered = [client.scatter(scene, broadcast=True, hash=False)]
+    scattered = client.scatter(scene, broadcast=True, hash=False)
     if time_budget is not None:
         # Every worker compiles/loads the estimator's compiled kernels before the clock runs.
         client.run(_warm_worker, scene, spec, settings)
 
     timeout = NO_WORKER_TIMEOUT if no_worker_timeout is None else float(no_worker_timeout)
-    retries, used = [0], {}
+    retries, used = 0, {}  # resubmissions so far; pass -> the scattered copy it was given
 
     def submit(i: int):
-        used[i] = scattered[0]
-        return client.submit(_pass_task, scattered[0], spec, i, seed, settings, pure=False)
+        used[i] = scattered
+        return client.submit(_pass_task, scattered, spec, i, seed, settings, pure=False)
 
     def resubmit(i: int, e: Exception) -> bool:
         # A killed worker can take the scattered scene with it: the scheduler then forgets
@@ -240,13 +240,14 @@ def render_distributed(
         # current copy) and resubmit, a bounded number of times.
         from concurrent.futures import CancelledError
 
-        if not isinstance(e, CancelledError) or retries[0] >= RESUBMITS:
+        nonlocal scattered, retries
+        if not isinstance(e, CancelledError) or retries >= RESUBMITS:
             return False
         if _live_workers(client) == 0:
             return False
-        retries[0] += 1
-        if used.get(i) is scattered[0]:
-            scattered[0] = client.scatter(scene, broadcast=True, hash=False)
+        retries += 1
+        if used.get(i) is scattered:
+            scattered = client.scatter(scene, broadcast=True, hash=False)
         return True
 
     try:

@@ -136,12 +136,26 @@ def _render_group(case: str, size: tuple[int, int]) -> dict:
     return out
 
 
+def _groups() -> dict[str, tuple[str, tuple[int, int]]]:
+    """Every picture's name with its (case, size) group."""
+    from ui.views.panel_modes import MODES
+
+    groups = {}
+    for case, c in CASES.items():
+        for size in c["sizes"]:
+            tag = f"{case}_{size[0]}x{size[1]}"
+            names = [f"{tag}_{s}" for s in STAGES]
+            names += [f"{tag}_mode_{m}" for m in MODES] if c["modes"] else []
+            groups.update({n: (case, tuple(size)) for n in names})
+    return groups
+
+
 class _Pictures(dict):
     """The pictures by name, each (case, size) group rendered when one of its names is
     first asked for: the slow sizes only under make test-slow."""
 
     def __missing__(self, name: str):
-        case, size = _GROUPS[name]
+        case, size = _groups()[name]
         self.update(_render_group(case, size))
         return self[name]
 
@@ -152,21 +166,8 @@ def pictures():
 
 
 def _names() -> list:
-    from ui.views.panel_modes import MODES
-
-    names = []
-    for case, c in CASES.items():
-        for size in c["sizes"]:
-            tag = f"{case}_{size[0]}x{size[1]}"
-            group = [f"{tag}_{s}" for s in STAGES]
-            group += [f"{tag}_mode_{m}" for m in MODES] if c["modes"] else []
-            marks = [pytest.mark.slow] if tuple(size) in SLOW_SIZES else []
-            names += [pytest.param(n, id=n, marks=marks) for n in group]
-            _GROUPS.update({n: (case, tuple(size)) for n in group})
-    return names
-
-
-_GROUPS: dict[str, tuple[str, tuple[int, int]]] = {}
+    return [pytest.param(n, id=n, marks=[pytest.mark.slow] if size in SLOW_SIZES else [])
+            for n, (_, size) in _groups().items()]
 
 
 @pytest.mark.parametrize("name", _names())
