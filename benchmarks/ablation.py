@@ -1,0 +1,160 @@
+"""What each lever bought at K = 2..3: the ladder from the paper's MIS set to ``fast-multi``,
+each rung's per-photon variance and CPU cost against photon planes (issue 12's ablation).
+
+Rungs (each changes one thing from the one above it):
+
+1. ``paper-multi`` on the numpy stages (binning, intersect, evaluate, numpy MIS weights): no
+   compiled walker;
+2. ``paper-multi`` with compiled walkers but its MIS weights computed in numpy from the
+   walkers' emitted hits (the walker without a fused weight);
+3. ``paper-multi`` as it runs (walkers with the fused MIS weight);
+4. its members short (each surface cut at the photon's own flights);
+5. short members with sample counts (``@share``: the helpers sweep a share of the photons);
+6. ``fast-multi`` (two helpers kept: ``planes`` + ``plane-t2t3-short@0.3`` +
+   ``cone-short@0.2``).
+
+Per rung: ``Vp``, one photon's variance (mean per-pixel variance of passes through the pixel
+centres times the photons a pass; the same for rungs 1-3, which differ only in how the same
+numbers are computed, and measured once), the CPU time a photon costs in a whole pass (trace,
+primitives, walks, weights: ``time.process_time``, every thread; the median of
+``--cost-passes`` passes of ``--photons`` photons after a warm-up), their product ``E`` (the
+equal-time variance up to the clock, fixed per-pass costs included) and ``E`` over
+``planes``'. ``planes``' ``Vp`` is heavy-tailed (grazing hits): it takes ``--baseline-passes``
+passes (default 4x ``--passes``).
+
+Usage::
+
+    python benchmarks/ablation.py SCENE.toml KMIN KMAX [--photons 2000] [--passes 40]
+        [--cost-passes 3] [--baseline-passes N] [--seed 7] [--skip-numpy]
+    python benchmarks/ablation.py scenes/study_medium.toml 2 3
+
+Not a test: CPU time moves with the machine's load; compare within one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from contextlib import contextmanager
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+from psurf_core import render as render_mod  # noqa: E402
+from psurf_core.accumulate import Welford  # noqa: E402
+from psurf_core.camera import camera_rays  # noqa: E402
+from psurf_core.estimators import parse_estimator  # noqa: E402
+from psurf_core.kernels import fused as fused_mod  # noqa: E402
+from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
+from psurf_core.scene_io import load_scene  # noqa: E402
+
+LONG = "mis:plane-t1t2+plane-t1t3+plane-t2t3+cone+cylinder"  # = paper-multi
+SHORT = "mis:planes+plane-t1t3-short+plane-t2t3-short+cone-short+cylinder-short"
+SHARED = ("mis:planes+plane-t1t3-short@0.3+plane-t2t3-short@0.3+cone-short@0.2"
+          "+cylinder-short@0.2")
+
+#: (label, spec, mode): mode "stages" (no compiled walker), "numpy weights" (walkers without
+#: the fused MIS weight) or "" (as it runs).
+RUNGS = (
+    ("planes (baseline)", "planes", ""),
+    ("1. paper-multi, numpy stages", "paper-multi", "stages"),
+    ("2. + compiled walkers, numpy MIS weights", "paper-multi", "numpy weights"),
+    ("3. + fused MIS weight (paper-multi today)", "paper-multi", ""),
+    ("4. + short members", SHORT, ""),
+    ("5. + sample counts (@share)", SHARED, ""),
+    ("6. fast-multi (two helpers)", "fast-multi", ""),
+)
+
+
+@contextmanager
+def mode(name: str):
+    """``render_pass`` on the numpy stages (``stages``), or with walkers that leave the MIS
+    weight to numpy (``numpy weights``); as it runs for ``""``."""
+    real_fused, real_weight = render_mod.fused_pass, fused_mod.weight_of
+    if name == "stages":
+        render_mod.fused_pass = lambda *a, **k: None
+    elif name == "numpy weights":
+        fused_mod.weight_of = lambda *a, **k: (None, None)
+    try:
+        yield
+    finally:
+        render_mod.fused_pass, fused_mod.weight_of = real_fused, real_weight
+
+
+@contextmanager
+def centred():
+    """Camera rays through the pixel centres: the variance left is the photons'."""
+    real = render_mod.camera_rays
+    render_mod.camera_rays = lambda *a, **k: camera_rays(*a, jitter=False, **k)
+    try:
+        yield
+    finally:
+        render_mod.camera_rays = real
+
+
+def photon_variance(scene, est, photons: int, passes: int, seed: int) -> float:
+    """``Vp``: mean per-pixel variance of ``passes`` centred passes times ``photons``."""
+    acc = Welford.empty((scene.camera.height, scene.camera.width, 3))
+    with centred():
+        for i in range(passes):
+            acc.add(render_pass(scene, est, i, seed, RenderSettings(photons=photons)))
+    return float(np.mean(acc.variance)) * photons
+
+
+def photon_cost(scene, est, photons: int, passes: int, seed: int) -> float:
+    """Median CPU seconds a photon costs in a whole pass (after one warm-up pass)."""
+    st = RenderSettings(photons=photons)
+    render_pass(scene, est, 0, seed + 1, st)
+    cpu = []
+    for i in range(passes):
+        a = time.process_time()
+        render_pass(scene, est, i, seed + 2, st)
+        cpu.append(time.process_time() - a)
+    return statistics.median(cpu) / photons
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene")
+    ap.add_argument("kmin", type=int)
+    ap.add_argument("kmax", type=int)
+    ap.add_argument("--photons", type=int, default=2000)
+    ap.add_argument("--passes", type=int, default=40)
+    ap.add_argument("--cost-passes", type=int, default=3)
+    ap.add_argument("--baseline-passes", type=int, default=None)
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--skip-numpy", action="store_true", help="leave out rungs 1 and 2")
+    args = ap.parse_args(argv)
+    scene = load_scene(args.scene).with_scatter(args.kmin, args.kmax)
+    print(f"# python benchmarks/ablation.py {' '.join(sys.argv[1:] if argv is None else argv)}")
+    print(f"# {args.scene} K={args.kmin}..{args.kmax}, {args.photons} photons a pass, "
+          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
+          f"load {os.getloadavg()[0]:.2f}")
+    print(f"{'rung':<44} {'Vp':>10} {'us/photon':>10} {'E = Vp c':>10} {'E / planes':>10} "
+          f"{'Vp / planes':>11} {'c / planes':>10}")
+    vps: dict[str, float] = {}
+    base = None
+    for label, spec, m in RUNGS:
+        if args.skip_numpy and m:
+            continue
+        est = parse_estimator(spec, scene)
+        with mode(m):
+            warm_up(scene, est, RenderSettings(photons=64))
+            if spec not in vps:
+                n = (args.baseline_passes or 4 * args.passes) if base is None else args.passes
+                vps[spec] = photon_variance(scene, est, args.photons, n, args.seed)
+            c = photon_cost(scene, est, args.photons, args.cost_passes, args.seed)
+        vp = vps[spec]
+        base = base or (vp, c)
+        print(f"{label:<44} {vp:10.3e} {c * 1e6:10.1f} {vp * c:10.3e} "
+              f"{vp * c / (base[0] * base[1]):10.3f} {vp / base[0]:11.3f} {c / base[1]:10.2f}",
+              flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
