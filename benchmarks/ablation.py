@@ -26,7 +26,11 @@ Usage::
 
     python benchmarks/ablation.py SCENE.toml KMIN KMAX [--photons 2000] [--passes 40]
         [--cost-passes 3] [--baseline-passes N] [--seed 7] [--skip-numpy]
+        [--specs SPEC;SPEC;...]
     python benchmarks/ablation.py scenes/study_medium.toml 2 3
+
+``--specs`` measures the given estimators (``;``-separated) against ``planes`` instead of the
+rungs: a preset's variants on the same footing.
 
 Not a test: CPU time moves with the machine's load; compare within one run.
 """
@@ -128,6 +132,7 @@ def main(argv=None) -> int:
     ap.add_argument("--baseline-passes", type=int, default=None)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--skip-numpy", action="store_true", help="leave out rungs 1 and 2")
+    ap.add_argument("--specs", default=None, help="';'-separated estimators instead of the rungs")
     args = ap.parse_args(argv)
     scene = load_scene(args.scene).with_scatter(args.kmin, args.kmax)
     print(f"# python benchmarks/ablation.py {' '.join(sys.argv[1:] if argv is None else argv)}")
@@ -138,7 +143,9 @@ def main(argv=None) -> int:
           f"{'Vp / planes':>11} {'c / planes':>10}")
     vps: dict[str, float] = {}
     base = None
-    for label, spec, m in RUNGS:
+    rungs = RUNGS if args.specs is None else (
+        RUNGS[:1] + tuple((s, s, "") for s in args.specs.split(";")))
+    for label, spec, m in rungs:
         if args.skip_numpy and m:
             continue
         est = parse_estimator(spec, scene)
