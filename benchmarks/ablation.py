@@ -15,8 +15,8 @@ Rungs (each changes one thing from the one above it):
 
 Per rung: ``Vp``, one photon's variance (mean per-pixel variance of passes through the pixel
 centres times the photons a pass; the same for rungs 1-3, which differ only in how the same
-numbers are computed, and measured once), the CPU time a photon costs in a whole pass (trace,
-primitives, walks, weights: ``time.process_time``, every thread; the median of
+numbers are computed, and measured once, compiled), the CPU time a photon costs in a whole
+pass (trace, primitives, walks, weights: ``time.process_time``, every thread; the median of
 ``--cost-passes`` passes of ``--photons`` photons after a warm-up), their product ``E`` (the
 equal-time variance up to the clock, fixed per-pass costs included) and ``E`` over
 ``planes``'. ``planes``' ``Vp`` is heavy-tailed (grazing hits): it takes ``--baseline-passes``
@@ -149,11 +149,14 @@ def main(argv=None) -> int:
         if args.skip_numpy and m:
             continue
         est = parse_estimator(spec, scene)
+        if spec not in vps:
+            # The modes compute the same numbers (tests/test_walkers.py, test_twins.py):
+            # the variance is measured once, on the compiled path.
+            warm_up(scene, est, RenderSettings(photons=64))
+            n = (args.baseline_passes or 4 * args.passes) if base is None else args.passes
+            vps[spec] = photon_variance(scene, est, args.photons, n, args.seed)
         with mode(m):
             warm_up(scene, est, RenderSettings(photons=64))
-            if spec not in vps:
-                n = (args.baseline_passes or 4 * args.passes) if base is None else args.passes
-                vps[spec] = photon_variance(scene, est, args.photons, n, args.seed)
             c = photon_cost(scene, est, args.photons, args.cost_passes, args.seed)
         vp = vps[spec]
         base = base or (vp, c)
