@@ -58,7 +58,8 @@ def main(argv=None) -> int:
     def tally(tech, hits, prims, rays, raw, val):
         v, r = val.sum(1), raw.sum(1)
         keep = v > 0
-        names = hits.data.dtype.names or ()
+        dt = getattr(hits.data, "dtype", None)  # a record array, or a dict (numpy stages)
+        names = (dt.names or ()) if dt is not None else tuple(hits.data)
         ndp = (hits.data["n_dot_psi"][keep] if "n_dot_psi" in names
                else np.full(int(keep.sum()), np.nan))
         per[tech.name].append((v[keep], r[keep], ndp))
