@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["MIN_EFFECTIVE_PASSES", "SKEW_MAX", "WARN_FRACTION", "PixelReliability",
+           "heavy_tail_note",
            "from_npz", "npz_fields", "of_accumulator", "pixel_reliability", "summarize"]
 
 #: Largest trusted skewness of a pixel's mean (``|m3| / m2^1.5``).
@@ -210,3 +211,22 @@ def summarize(rel: PixelReliability | None, what: str = "the reference") -> dict
                           f"(at most {100 * WARN_FRACTION:g}% allowed): error estimate "
                           "looks reliable")
     return out
+
+
+def heavy_tail_note(fractions) -> str | None:
+    """A compared estimator's note when its own passes are heavy-tailed: ``fractions`` holds,
+    per run, the share of its pixels :func:`summarize` flags (None: not checked). ``None``
+    when no run flags more than :data:`WARN_FRACTION`.
+
+    Photon planes at K >= 2 are the case in point (their second moment diverges where a
+    plane is seen edge-on, docs/study.md): a sample variance of a heavy-tailed estimator is
+    most often below its mean, so its Var, and every ratio taken against it, read in its
+    favour."""
+    flagged = [(f, r) for r, f in enumerate(fractions) if f is not None and f > WARN_FRACTION]
+    if not flagged:
+        return None
+    worst, r = max(flagged)
+    return (f"heavy-tailed passes: {100 * worst:.1f}% of the pixels of run {r + 1} flag their "
+            f"error estimate (more than {100 * WARN_FRACTION:g}%; {len(flagged)} of "
+            f"{len(fractions)} runs): its measured variance is likely below its true one, so "
+            "Var ratios against it read in its favour")

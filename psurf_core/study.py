@@ -319,6 +319,7 @@ def compare(
                 on_render(label, res)
             n = res.passes
             mv = float(np.mean(res.var / n)) if n >= 2 else float("nan")
+            tails = rl.summarize(rl.of_accumulator(res.accumulator), label)
             per_run.append({
                 "seed": seed + r,
                 "passes": int(n),
@@ -332,6 +333,8 @@ def compare(
                 "relmse_from_variance": var_relmse(res.var / n, ref) if n >= 2 else
                 float("nan"),
                 "curve": _thin(curve),
+                # The share of pixels whose error estimate its own passes flag (reliability).
+                "heavy_tailed_fraction": tails.get("fraction"),
             })
             finals.append(res.mean)
             if r == 0:
@@ -345,6 +348,9 @@ def compare(
         if not est.reference and _min_k(est) > scene.min_scatter:
             notes.append(f"covers K >= {_min_k(est)} only; the image has K >= "
                          f"{scene.min_scatter} (the missing part counts as error)")
+        tail_note = rl.heavy_tail_note([x["heavy_tailed_fraction"] for x in per_run])
+        if tail_note is not None:
+            notes.append(tail_note)
         if any(run["passes"] < 2 for run in per_run):
             notes.append("a run finished fewer than 2 passes: no variance estimate "
                          "(lower --photons or raise --time)")

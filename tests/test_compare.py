@@ -119,6 +119,35 @@ def test_run_by_run_ratios_pair_run_r_with_the_first_estimators_run_r(study):
     assert ", ".join(f"{x:.2g}" for x in want) in row
 
 
+def test_heavy_tailed_runs_are_noted(study):
+    """Every run records the share of its pixels whose error estimate its own passes flag
+    (``psurf_core.reliability``), and an estimator gets the heavy-tail note exactly when a
+    run flags more than ``WARN_FRACTION`` (in compare.md too)."""
+    from psurf_core.reliability import WARN_FRACTION
+
+    s, out = study
+    md = (out / "compare.md").read_text()
+    for row in s["results"]:
+        fr = [run["heavy_tailed_fraction"] for run in row["runs"]]
+        assert all(f is not None and 0.0 <= f <= 1.0 for f in fr)
+        noted = [n for n in row["notes"] if n.startswith("heavy-tailed passes")]
+        assert len(noted) == (1 if max(fr) > WARN_FRACTION else 0)
+        for n in noted:
+            assert f"- `{row['estimator']}`: {n}" in md
+
+
+def test_a_flagged_run_gets_the_note(tiny, monkeypatch):
+    """The other branch: with the threshold below every share, each estimator is noted."""
+    from psurf_core import reliability
+
+    monkeypatch.setattr(reliability, "WARN_FRACTION", -1.0)
+    _, scene = tiny
+    s = compare(scene, ["planes"], 0.2, runs=2, seed=3, settings=RenderSettings(photons=200),
+                reference_seconds=0.2)
+    (row,) = s["results"]
+    assert any(n.startswith("heavy-tailed passes") and "2 of 2 runs" in n for n in row["notes"])
+
+
 def test_outputs_written(study):
     _, out = study
     for name in OUTPUT_FILES:

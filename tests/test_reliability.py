@@ -114,6 +114,19 @@ def test_normal_passes_are_reliable_heavy_tails_are_not():
     assert not rl.summarize(normal)["warn"]
 
 
+def test_heavy_tail_note_names_the_worst_run_only_past_the_threshold():
+    """``compare``'s note on an estimator whose own passes are heavy-tailed (photon planes at
+    K >= 2: 6.6 % of study_medium's pixels in a 15 s render): the worst flagged run, how many
+    runs were flagged; nothing at or below ``WARN_FRACTION`` or when unchecked."""
+    w = rl.WARN_FRACTION
+    assert rl.heavy_tail_note([0.0, w, None]) is None
+    assert rl.heavy_tail_note([]) is None
+    note = rl.heavy_tail_note([0.01, 0.066, w + 0.001])
+    assert note is not None
+    assert "6.6% of the pixels of run 2" in note and "2 of 3 runs" in note
+    assert "in its favour" in note
+
+
 @pytest.mark.parametrize("events", [1, 2, 16, 64])
 def test_skew_of_mean_counts_the_rare_events(events):
     """``events`` passes of value 1000 among 20000 zeros-or-ones: the skewness of the mean is
