@@ -39,18 +39,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
 import time
 from contextlib import contextmanager
 
-import numpy as np
-
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
+from benchmarks.pass_model import passes_of  # noqa: E402
 from psurf_core import render as render_mod  # noqa: E402
-from psurf_core.accumulate import Welford  # noqa: E402
-from psurf_core.camera import camera_rays  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.kernels import fused as fused_mod  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
@@ -89,36 +85,17 @@ def mode(name: str):
         render_mod.fused_pass, fused_mod.weight_of = real_fused, real_weight
 
 
-@contextmanager
-def centred():
-    """Camera rays through the pixel centres: the variance left is the photons'."""
-    real = render_mod.camera_rays
-    render_mod.camera_rays = lambda *a, **k: camera_rays(*a, jitter=False, **k)
-    try:
-        yield
-    finally:
-        render_mod.camera_rays = real
-
-
 def photon_variance(scene, est, photons: int, passes: int, seed: int) -> float:
-    """``Vp``: mean per-pixel variance of ``passes`` centred passes times ``photons``."""
-    acc = Welford.empty((scene.camera.height, scene.camera.width, 3))
-    with centred():
-        for i in range(passes):
-            acc.add(render_pass(scene, est, i, seed, RenderSettings(photons=photons)))
-    return float(np.mean(acc.variance)) * photons
+    """``Vp``: mean per-pixel variance of ``passes`` passes through the pixel centres, times
+    ``photons`` (:func:`benchmarks.pass_model.passes_of`)."""
+    return passes_of(scene, est, photons, passes, False, seed)[0] * photons
 
 
 def photon_cost(scene, est, photons: int, passes: int, seed: int) -> float:
-    """Median CPU seconds a photon costs in a whole pass (after one warm-up pass)."""
-    st = RenderSettings(photons=photons)
-    render_pass(scene, est, 0, seed + 1, st)
-    cpu = []
-    for i in range(passes):
-        a = time.process_time()
-        render_pass(scene, est, i, seed + 2, st)
-        cpu.append(time.process_time() - a)
-    return statistics.median(cpu) / photons
+    """Median CPU seconds a photon costs in a whole (jittered) pass, after one warm-up
+    pass."""
+    render_pass(scene, est, 0, seed + 1, RenderSettings(photons=photons))
+    return passes_of(scene, est, photons, passes, True, seed + 2)[1] / photons
 
 
 def main(argv=None) -> int:

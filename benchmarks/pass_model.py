@@ -41,8 +41,10 @@ from psurf_core.scene_io import load_scene  # noqa: E402
 SIZES = (256, 2048)
 
 
-def passes_of(scene, est, photons: int, passes: int, jitter: bool) -> tuple[float, float]:
-    """(mean per-pass pixel variance, median CPU seconds a pass) of ``passes`` passes."""
+def passes_of(scene, est, photons: int, passes: int, jitter: bool,
+              seed: int = 7) -> tuple[float, float]:
+    """(mean per-pass pixel variance, median CPU seconds a pass) of ``passes`` passes
+    (pass ``i`` of seed ``seed``)."""
     real = render_mod.camera_rays
     render_mod.camera_rays = lambda *a, **k: camera_rays(*a, jitter=jitter, **k)
     try:
@@ -50,7 +52,7 @@ def passes_of(scene, est, photons: int, passes: int, jitter: bool) -> tuple[floa
         cpu = []
         for i in range(passes):
             a = time.process_time()
-            img = render_pass(scene, est, i, 7, RenderSettings(photons=photons))
+            img = render_pass(scene, est, i, seed, RenderSettings(photons=photons))
             cpu.append(time.process_time() - a)
             acc.add(img)
     finally:
