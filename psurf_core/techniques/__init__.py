@@ -97,6 +97,11 @@ def _register_builtin() -> None:
              has_short=True, summary="generalized plane [t1,t3] through x3 + T2 w2; K>=3")
     register("plane-t2t3", multi("generalized_planes", "GeneralizedPlane", which="t2t3"),
              has_short=True, summary="generalized plane [t2,t3] through x3 + T1 w1; K>=3")
+    register("plane-ut", multi("light_planes", "LightPlane", which="ut"), has_short=True,
+             summary="light strip [u, t_K]: light edge e_u and emission flight, the rest of "
+                     "the path carried along; K=2..3, area and mesh lights")
+    register("plane-vt", multi("light_planes", "LightPlane", which="vt"), has_short=True,
+             summary="light strip [v, t_K] (edge e_v); K=2..3, area and mesh lights")
     register("sphere", multi("spheres", "PhotonSphere"),
              summary="photon sphere [cos th1, ph1] about x1, radius T1; K>=2")
     register("cone", multi("cones", "PhotonCone"), has_short=True,

@@ -1,0 +1,368 @@
+"""Photon planes through the light for multiple scattering: ``[u, t_K]`` and ``[v, t_K]``
+(K = 2, 3; parallelogram and mesh lights).
+
+A K-event photon path ``x_K -> x_{K-1} -> ... -> x_0`` starts at the light point
+``x_K = x_L(u, v)``. Moving the light point along one light edge moves the whole path rigidly
+(every later direction, flight and scattering angle is kept), so integrating that light
+coordinate and the emission flight ``t_K`` sweeps a planar strip:
+
+``x0 = x_L(u, V) + t_K w_K + R``, ``R = T_{K-1} w_{K-1} + ... + T_1 w_1`` (the photon's own
+later segments), the plane through ``x_L(0, V) + R`` spanned by ``e_u`` and ``w_K``; scaled
+normal ``n = e_u x w_K`` (``plane-ut``; ``plane-vt``: ``e_v``, ``u <-> v``). These are the
+single-scattering strips ``ss-plane-ut`` / ``-vt`` (spec 3.2) carried over to K = 2, 3: at
+K = 1 ``R = 0``.
+
+Their normal is perpendicular to the light edge and to the emission direction, not to the
+last direction ``w1``: where every surface that integrates ``t1`` (photon planes, cones)
+is seen edge-on (``psi`` in their tangent planes, all of which hold ``w1``), a strip is
+not, and for a light facing down seen from the side it is mostly seen face-on.
+
+Per photon (``beta_1^-``: the photon's weight arriving at ``x1``, :func:`~.surface_common.beta1`)::
+
+    X = beta_1^- [p(u,v) / p_kept] [E(t_K*)] ss rho0 E(s*) / |n . psi|
+
+The photon sampled ``t_K`` (its ``beta_1^-`` holds ``E(T_K) ss / p(T_K) = ss / st``);
+integrating it puts ``ss E(t_K*)`` in its place (factor ``st E(t_K*)``); its last flight
+``T1`` stays sampled (``E / p = 1 / st``, with ``ss rho0`` at ``x0``): together
+``E(t_K*) ss rho0``. The integrated light coordinate replaces ``1 / p(u, v)`` by
+``1 / p_kept`` (``p(v)`` for ``[u, t_K]``; 1 on a parallelogram, the barycentric marginal on
+a triangle, as in :mod:`.single_planes`). Short: ``t_K* < T_K`` and ``E(t_K*)`` dropped.
+
+``Q`` (relative: the light-position pdf, and at K = 3 the emission pdf ``p(w3)``, are
+dropped as for every member, ``path_record``)::
+
+    K = 2: [p_kept / p(u,v)] p(w2) p(w1) p(t1) |(e_u x w2) . psi|
+    K = 3: [p_kept / p(u,v)] p(w2) p(t2) p(w1) p(t1) |(e_u x w3) . psi|
+
+(short: ``* E(t_K)``). The tracer samples every photon through its first three segments
+whatever its vertices do (``trace_numpy.LOOKBACK``), so each photon that reaches segment K
+sweeps a strip (spec 4); K >= 4 would need the photons' deeper prefixes, so ``max_k = 3``.
+The rebuilt vertices ``x_{K-1}*, ..., x_1*`` must lie in the box and every rebuilt segment be
+clear (the light itself blocks). Each numpy function has its compiled twin (``@twin``)
+beneath it; see :mod:`.cones`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..geometry import inside_box
+from ..kernels.jit import scalar, twin
+from ..kernels.shadow import BLOCKED, CLEAR, status
+from ..kernels.vec import madd
+from ..path_record import photon_table, with_light_point, with_t2, with_t3
+from ..pdfs import MESH, position_pdfs
+from ..records import Vec, table
+from ..records import replace as set_field
+from . import grids
+from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
+from .bounds import wedge_hull
+from .single import sweep_bounds
+from .surface_common import NDP_MIN, beta1, box_reach, camera_term, gather, plane_solve
+
+
+class LPlaneGeometry(NamedTuple):
+    """One light strip (a row of its ``Primitives.data``)."""
+
+    org: Vec  # the strip's corner x_L(0, V) + R (ut) or x_L(U, 0) + R (vt)
+    A: Vec  # the light edge e_u (ut) or e_v (vt)
+    B: Vec  # w_K: the photon's emission direction
+    amax: float  # upper limit of the light coordinate (1, or 1 - V / 1 - U on a triangle)
+    TK: float  # the photon's emission flight (the short strip's extent)
+    a0: float  # the photon's own light coordinate along A (U or V)
+    xL: Vec  # the photon's light point x_K
+    w2: Vec  # the middle segment (K = 3; unused at K = 2)
+    T2: float  # its length (0 at K = 2)
+    w1: Vec  # the last direction (kept)
+    T1: float
+    p_ratio: float  # p(u,v) / p_kept
+    beta: Vec  # beta_1^- (W)
+
+
+class LPlaneHit(NamedTuple):
+    """One strip hit (a row of its ``Hits.data``)."""
+
+    a: float  # the integrated light coordinate u* (ut) or v* (vt)
+    b: float  # the integrated emission flight t_K*
+    n_dot_psi: float  # |(A x B) . psi|
+
+
+# ------------------------------------------------------------------------- geometry
+def scaled_normal(which, eu, ev, wK):
+    """(H, 3) ``e_u x w_K`` (ut) or ``e_v x w_K`` (vt)."""
+    return cross(eu if which == "ut" else ev, wK)
+
+
+def vertices(G, hit):
+    """(H, 3) the rebuilt light point ``x_K*``, first scattering ``x_{K-1}*`` and ``x_1*``
+    (``= x_{K-1}*`` at K = 2): the photon's path moved by ``(a* - a0) A``, its emission
+    flight ``t_K*``."""
+    xl = G.xL + (hit.a - G.a0)[:, None] * G.A
+    xm = xl + hit.b[:, None] * G.B
+    return xl, xm, xm + G.T2[:, None] * G.w2
+
+
+@twin(vertices)
+def _vertices(G, hit):
+    xl = madd(G.xL, hit.a - G.a0, G.A)
+    xm = madd(xl, hit.b, G.B)
+    return xl, xm, madd(xm, G.T2, G.w2)
+
+
+# ------------------------------------------------------------------------- Intersect
+def roots(G, o, psi):
+    """(1, N) ray distance of the strip's plane (Cramer's rule; inf / NaN if parallel)."""
+    return plane_solve(G.org, G.A, G.B, o, psi)[2][None]
+
+
+@twin(roots)
+def _roots(G, o, psi):
+    return (plane_solve(G.org, G.A, G.B, o, psi)[2],)
+
+
+def accept(G, o, psi, s, short):
+    """Hits: ``0 <= a <= amax``, ``b > 0`` (``b < T_K`` if short), not grazing."""
+    a, b, _, ndp = plane_solve(G.org, G.A, G.B, o, psi)
+    with np.errstate(invalid="ignore"):
+        ok = (ndp > NDP_MIN) & (a >= 0.0) & (a <= G.amax) & (b > 0.0)
+        if short:
+            ok &= b < G.TK
+    return ok, table(LPlaneHit, a=a, b=b, n_dot_psi=ndp)
+
+
+@twin(accept)
+def _accept(G, o, psi, s, short):
+    a, b, _, ndp = plane_solve(G.org, G.A, G.B, o, psi)
+    ok = (ndp > NDP_MIN and a >= 0.0 and a <= G.amax and b > 0.0
+          and (not short or b < G.TK))
+    return ok, LPlaneHit(a, b, ndp)
+
+
+# ------------------------------------------------------------------------- Evaluate
+def segments(G, x0, hit):
+    """The rebuilt path's segments: ``x_K* -> x_{K-1}*``, ``x_{K-1}* -> x_1*`` (a point at
+    K = 2) and ``x_1* -> x0``."""
+    xl, xm, x1 = vertices(G, hit)
+    return [(xl, xm), (xm, x1), (x1, x0)]
+
+
+def visibility(G, x0, hit, medium, blockers):
+    """(H,) bool: ``x_{K-1}*`` and ``x_1*`` in the box, and the rebuilt segments clear."""
+    xl, xm, x1 = vertices(G, hit)
+    ok = (inside_box(xm, medium.bounds_min, medium.bounds_max)
+          & inside_box(x1, medium.bounds_min, medium.bounds_max))
+    return segments_clear(blockers, (xl, xm), (xm, x1), (x1, x0), ok=ok)
+
+
+@twin(visibility, inline=True)
+def _visibility(G, x0, hit, medium, blockers):
+    xl, xm, x1 = vertices(G, hit)
+    if not inside_box(xm, medium.bounds_min, medium.bounds_max):
+        return BLOCKED, CLEAR, CLEAR
+    st0 = status(xl, xm, blockers)
+    if st0 == BLOCKED:
+        return BLOCKED, CLEAR, CLEAR
+    st1 = CLEAR
+    if G.T2 > 0.0:
+        if not inside_box(x1, medium.bounds_min, medium.bounds_max):
+            return st0, BLOCKED, CLEAR
+        st1 = status(xm, x1, blockers)
+        if st1 == BLOCKED:
+            return st0, BLOCKED, CLEAR
+    return st0, st1, status(x1, x0, blockers)
+
+
+def contribution(G, psi, s, s_min, hit, short, medium):
+    """``[p(u,v) / p_kept] [E(t_K*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon
+    weight (``beta_1^-``)."""
+    extra = 0.0 if short else hit.b
+    return G.p_ratio * camera_term(-dot(G.w1, psi), s - s_min, extra, medium) / hit.n_dot_psi
+
+
+@twin(contribution)
+def _contribution(G, psi, s, s_min, hit, short, medium):
+    extra = 0.0 if short else hit.b
+    return G.p_ratio * camera_term(-dot(G.w1, psi), s - s_min, extra, medium) / hit.n_dot_psi
+
+
+# ------------------------------------------------------------------------- MIS
+def reconstruct(rec, G, hit, which):
+    """The hit's full path: the light point and every later vertex moved by
+    ``(a* - a0) A``, ``t_K* = b``, the light coordinate ``a*``."""
+    xl, xm, x1 = vertices(G, hit)
+    k3 = (rec.K >= 3)[:, None]
+    kept = rec.uv[:, 1] if which == "ut" else rec.uv[:, 0]
+    uv = np.stack([hit.a, kept] if which == "ut" else [kept, hit.a], axis=1)
+    return rec.with_(uv=uv, x3=np.where(k3, xl, rec.x3), x2=np.where(k3, xm, xl), x1=x1,
+                     t3=np.where(k3[:, 0], hit.b, rec.t3), t2=np.where(k3[:, 0], rec.t2, hit.b))
+
+
+@scalar
+def _moved(row, G, hit, u, v):
+    """``row`` with the light point moved (its position pdfs), the rebuilt ``x2*``, ``x1*``
+    and ``t_K* = b`` (with their pdfs)."""
+    xl, xm, x1 = vertices(G, hit)
+    row = with_light_point(row, x1, u, v)  # x1 and the light-position pdfs
+    if row.K >= 3:
+        return with_t3(set_field(row, "x2", xm), hit.b)
+    return with_t2(set_field(row, "x2", xl), hit.b)
+
+
+def reconstruct_ut(rec, G, hit):
+    """:func:`reconstruct` of ``plane-ut``."""
+    return reconstruct(rec, G, hit, "ut")
+
+
+@twin(reconstruct_ut)
+def _reconstruct_ut(rec, G, hit):
+    return _moved(rec, G, hit, hit.a, rec.uv[1])
+
+
+def reconstruct_vt(rec, G, hit):
+    """:func:`reconstruct` of ``plane-vt``."""
+    return reconstruct(rec, G, hit, "vt")
+
+
+@twin(reconstruct_vt)
+def _reconstruct_vt(rec, G, hit):
+    return _moved(rec, G, hit, rec.uv[0], hit.a)
+
+
+def density(p_kept, edge, rec, short):
+    """Relative ``Q`` of a light strip (module docstring): ``p_kept`` the pdf of the light
+    coordinate it keeps, ``edge`` the one it sweeps."""
+    k3 = rec.K >= 3
+    wK = np.where(k3[:, None], rec.w3, rec.w2)
+    q = (p_kept / rec.pdf.uv * rec.pdf.w2 * np.where(k3, rec.pdf.t2, 1.0) * rec.pdf.w1
+         * rec.pdf.t1 * np.abs(dot(cross(edge, wK), rec.psi)))
+    return q * np.where(k3, rec.pdf.e3, rec.pdf.e2) if short else q
+
+
+@twin(density)
+def _density(p_kept, edge, rec, short):
+    k3 = rec.K >= 3
+    wK = rec.w3 if k3 else rec.w2
+    q = (p_kept / rec.pdf.uv * rec.pdf.w2 * (rec.pdf.t2 if k3 else 1.0) * rec.pdf.w1
+         * rec.pdf.t1 * abs(dot(cross(edge, wK), rec.psi)))
+    if short:
+        return q * (rec.pdf.e3 if k3 else rec.pdf.e2)
+    return q
+
+
+def density_ut(rec, short):
+    """``Q`` of ``plane-ut``: the kept ``v``, the swept edge ``e_u``."""
+    return density(rec.pdf.v, rec.eu, rec, short)
+
+
+@twin(density_ut)
+def _density_ut(rec, short):
+    return density(rec.pdf.v, rec.eu, rec, short)
+
+
+def density_vt(rec, short):
+    """``Q`` of ``plane-vt``: the kept ``u``, the swept edge ``e_v``."""
+    return density(rec.pdf.u, rec.ev, rec, short)
+
+
+@twin(density_vt)
+def _density_vt(rec, short):
+    return density(rec.pdf.u, rec.ev, rec, short)
+
+
+_COMPILED = {
+    which: Compiled(LPlaneGeometry, LPlaneHit, 1, roots, accept, visibility, contribution,
+                    segments, rec_fn, dens_fn)
+    for which, rec_fn, dens_fn in (("ut", reconstruct_ut, density_ut),
+                                   ("vt", reconstruct_vt, density_vt))
+}
+
+
+# ------------------------------------------------------------------------- drawing
+def surface_grid(G, short, far):
+    """(M, 2, 2, 3) each strip's corners ``org + a A + b B``, ``a <= amax``, ``b <= T_K``
+    (short; long: out to ``far``): the drawing's sweep grid (:mod:`.grids`)."""
+    return grids.parallelograms(G.org, G.A, G.B, G.amax,
+                                grids.lengths(G.TK if short else None, len(G), far))
+
+
+# ------------------------------------------------------------------------- Create
+class LightPlane(Technique):
+    """``plane-ut`` / ``plane-vt``: the strip swept by a light coordinate and the emission
+    flight, the rest of the photon's path carried along (K = 2, 3).
+
+    Parameters
+    ----------
+    short : bool
+        ``t_K* < T_K`` with ``E(t_K*)`` dropped (track length).
+    which : {'ut', 'vt'}
+    """
+
+    family = "planes"
+    min_k = 2
+    max_k = 3
+    lights = ("area", "mesh")
+
+    grid = staticmethod(surface_grid)
+
+    def __init__(self, short: bool = False, which: str = "ut"):
+        if which not in ("ut", "vt"):
+            raise ValueError(f"unknown light plane '{which}'")
+        self.which = which
+        self.short = bool(short)
+        self.name = f"plane-{which}" + ("-short" if short else "")
+        self.compiled = _COMPILED[which]
+
+    def create(self, paths, ctx) -> Primitives:
+        """One strip per photon and K (:class:`LPlaneGeometry`)."""
+        scene = ctx.scene
+        lmask = self.light_mask(paths, scene)
+        # Every segment up to K is sampled whatever the photon's own vertices did (spec 4;
+        # LOOKBACK = 3 >= K): only the light vertex (always valid) is kept.
+        sel = [np.flatnonzero(lmask & paths.alive[:, k - 1] & paths.prefix_ok[:, 0])
+               for k in self.k_range(scene, paths.depth)]
+        photon = np.concatenate(sel) if sel else np.zeros(0, np.int64)
+        K = (np.concatenate([np.full(s.size, k) for s, k in
+                             zip(sel, self.k_range(scene, paths.depth), strict=True)])
+             if sel else np.zeros(0, np.int64))
+        lt = photon_table(paths, scene)[photon]
+        p_uv, p_u, p_v = position_pdfs(lt.kind, lt.pk, lt.u, lt.v)
+        ut = self.which == "ut"
+        p_kept = p_v if ut else p_u
+        w_e = paths.w[photon, 0]
+        # Back-side emission (zero f) and a kept coordinate of zero pdf are measure-zero.
+        keep = (dot(w_e, lt.axis) > 0.0) & (p_kept > 0.0)
+        photon, K, lt, p_uv, p_kept = photon[keep], K[keep], lt[keep], p_uv[keep], p_kept[keep]
+        g = gather(paths, photon, K)
+        k3 = K >= 3
+        xL, wK, TK = paths.x[photon, 0], paths.w[photon, 0], paths.t[photon, 0]
+        w2 = np.where(k3[:, None], g["w2"], 0.0)
+        T2 = np.where(k3, g["T2"], 0.0)
+        R = T2[:, None] * w2 + g["T1"][:, None] * g["w1"]
+        tri = lt.kind == MESH
+        if ut:
+            A, a0, amax = lt.eu, lt.u, np.where(tri, 1.0 - lt.v, 1.0)
+        else:
+            A, a0, amax = lt.ev, lt.v, np.where(tri, 1.0 - lt.u, 1.0)
+        org = xL - a0[:, None] * A + R
+        end = org + amax[:, None] * A
+        lo0, hi0 = np.minimum(org, end), np.maximum(org, end)
+        lo, _ = sweep_bounds(lo0, wK, wK, TK if self.short else None)
+        _, hi = sweep_bounds(hi0, wK, wK, TK if self.short else None)
+        lo, hi = clip_bounds(scene, lo, hi)
+        # Points of a long strip inside the box lie within the box's reach of org plus the
+        # edge: a parallelogram that long holds them.
+        reach = TK if self.short else (box_reach(scene, org)
+                                       + amax * np.linalg.norm(A, axis=1))
+        hull = wedge_hull(scene, org, A, wK, amax, reach)
+        data = table(LPlaneGeometry, org=org, A=A, B=wK, amax=amax, TK=TK, a0=a0, xL=xL,
+                     w2=w2, T2=T2, w1=g["w1"], T1=g["T1"], p_ratio=p_uv / p_kept,
+                     beta=beta1(paths, photon, K))
+        return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
+
+    def scaled_normal(self, rec):
+        """(H, 3) ``e_u x w_K`` / ``e_v x w_K`` on records ``rec``."""
+        wK = np.where((rec.K >= 3)[:, None], rec.w3, rec.w2)
+        return scaled_normal(self.which, rec.eu, rec.ev, wK)
+
