@@ -142,18 +142,20 @@ def _accept(G, o, psi, s, short):
 
 # ------------------------------------------------------------------------- Evaluate
 def segments(G, x0, hit):
-    """The rebuilt path's segments: ``x_K* -> x_{K-1}*``, ``x_{K-1}* -> x_1*`` (a point at
-    K = 2) and ``x_1* -> x0``."""
+    """The rebuilt path's segments: ``x_K* -> x_{K-1}*``, ``x_{K-1}* -> x_1*`` and
+    ``x_1* -> x0``; at K = 2, where the middle one is a point, the first again (its twin's
+    status there is CLEAR: nothing is deferred to it)."""
     xl, xm, x1 = vertices(G, hit)
-    return [(xl, xm), (xm, x1), (x1, x0)]
+    k3 = (G.T2 > 0.0)[:, None]
+    return [(xl, xm), (np.where(k3, xm, xl), np.where(k3, x1, xm)), (x1, x0)]
 
 
 def visibility(G, x0, hit, medium, blockers):
     """(H,) bool: ``x_{K-1}*`` and ``x_1*`` in the box, and the rebuilt segments clear."""
-    xl, xm, x1 = vertices(G, hit)
+    _, xm, x1 = vertices(G, hit)
     ok = (inside_box(xm, medium.bounds_min, medium.bounds_max)
           & inside_box(x1, medium.bounds_min, medium.bounds_max))
-    return segments_clear(blockers, (xl, xm), (xm, x1), (x1, x0), ok=ok)
+    return segments_clear(blockers, *segments(G, x0, hit), ok=ok)
 
 
 @twin(visibility, inline=True)
