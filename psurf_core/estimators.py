@@ -18,6 +18,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from .scene import Scene, SceneError
 from .techniques import REGISTRY, Technique, UnknownTechnique, get_technique
 
@@ -279,21 +281,53 @@ def _fast_single(kinds=ALL_KINDS):
             _only(_check_member("ss-disk-short"), mesh))
 
 
-def _fast_multi():
-    """Multiple scattering tuned for equal time (docs/study.md): photon planes (short
-    ``plane-t1t2``) on every photon, the short ``plane-t2t3`` on 30 % and the short cone on
-    20 % of them (MIS with sample counts)."""
-    return tuple(_check_member(n) for n in ("planes", "plane-t2t3-short@0.3",
-                                            "cone-short@0.2"))
+#: ``fast-multi``'s strips (``plane-ut-short``, ``plane-vt-short``) for area lights: a strip
+#: is kept whose typical normal (the light edge crossed with the light's normal: ``w_K`` is
+#: cosine-distributed about it) faces the camera at least this share as well as the better
+#: strip's (an edge-on strip costs hits and carries little weight).
+STRIP_FACING = 0.5
+
+
+def _strips(scene: Scene | None) -> tuple[str, ...]:
+    """The light strips ``fast-multi`` sweeps for the area lights of ``scene`` (both without
+    a scene): those facing the camera's forward direction (:data:`STRIP_FACING`)."""
+    names = ("plane-ut-short", "plane-vt-short")
+    areas = [] if scene is None else [lt for lt in scene.lights if lt.kind == "area"]
+    if not areas:
+        return names
+    f = scene.camera.forward
+    facing = np.zeros(2)
+    for lt in areas:
+        for i, edge in enumerate((lt.edge_u, lt.edge_v)):
+            n = np.cross(edge, lt.normal)
+            facing[i] = max(facing[i], abs(n @ f) / max(np.linalg.norm(n), 1e-300))
+    return tuple(n for n, x in zip(names, facing, strict=True)
+                 if x >= STRIP_FACING * facing.max())
+
+
+def _fast_multi(kinds=ALL_KINDS, scene: Scene | None = None):
+    """Multiple scattering tuned for equal time (docs/study.md, "Light strips"): photon
+    planes (short ``plane-t1t2``) on every photon and the short cone on 20 % of them (MIS
+    with sample counts); for an area light the light strips that face the camera
+    (:func:`_strips`) on every photon, else the short ``plane-t2t3`` on 30 %."""
+    members = [_check_member("planes")]
+    rest = tuple(k for k in ("point", "mesh") if k in kinds)
+    if "area" in kinds:
+        members += [_only(_check_member(n), ("area",)) for n in _strips(scene)]
+        if rest:
+            members.append(_only(_check_member("plane-t2t3-short@0.3"), rest))
+    else:
+        members.append(_check_member("plane-t2t3-short@0.3"))
+    return (*members, _check_member("cone-short@0.2"))
 
 
 def _preset(groups_fn):
-    """A preset whose groups ``groups_fn(kinds)`` may depend on the kinds of the scene's
-    lights (all kinds without a scene)."""
+    """A preset whose groups ``groups_fn(kinds, scene)`` may depend on the kinds of the
+    scene's lights (all kinds without a scene) and on the scene (None without one)."""
     def build(spec: str, scene: Scene | None) -> Estimator:
         groups, notes = [], []
         kinds = ALL_KINDS if scene is None else tuple(sorted({lt.kind for lt in scene.lights}))
-        for g in groups_fn(kinds):
+        for g in groups_fn(kinds, scene):
             kept, n = _applicable(list(g), scene, spec) if scene is not None else (list(g), ())
             groups.append(tuple(kept))
             notes.extend(n)
@@ -306,12 +340,13 @@ def register_presets() -> None:
     """Install the presets: the paper's (``paper-*``: all long techniques, every member on
     every photon) and the ones tuned for equal time (``fast-*``: short members and sample
     counts where the study measured them to pay), all with the balance heuristic."""
-    PRESETS["paper-single"] = _preset(lambda kinds: [_paper_single()])
-    PRESETS["paper-multi"] = _preset(lambda kinds: [_paper_multi()])
-    PRESETS["paper-full"] = _preset(lambda kinds: [_paper_single(), _paper_multi()])
-    PRESETS["fast-single"] = _preset(lambda kinds: [_fast_single(kinds)])
-    PRESETS["fast-multi"] = _preset(lambda kinds: [_fast_multi()])
-    PRESETS["fast-full"] = _preset(lambda kinds: [_fast_single(kinds), _fast_multi()])
+    PRESETS["paper-single"] = _preset(lambda kinds, scene: [_paper_single()])
+    PRESETS["paper-multi"] = _preset(lambda kinds, scene: [_paper_multi()])
+    PRESETS["paper-full"] = _preset(lambda kinds, scene: [_paper_single(), _paper_multi()])
+    PRESETS["fast-single"] = _preset(lambda kinds, scene: [_fast_single(kinds)])
+    PRESETS["fast-multi"] = _preset(lambda kinds, scene: [_fast_multi(kinds, scene)])
+    PRESETS["fast-full"] = _preset(lambda kinds, scene: [_fast_single(kinds),
+                                                         _fast_multi(kinds, scene)])
 
 
 register_presets()

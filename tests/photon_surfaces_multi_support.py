@@ -11,6 +11,8 @@ from psurf_core.scene import PointLight, Scene, SphereOccluder
 MINE_K2 = ["sphere", "cone", "cone-short", "cylinder", "cylinder-short", "disk", "disk-short",
            "hyperboloid", "hyperboloid-short", "torus"]
 MINE_K3 = ["plane-t1t3", "plane-t1t3-short", "plane-t2t3", "plane-t2t3-short"]
+#: The light strips (K = 2, 3; area and mesh lights only).
+MINE_LIGHT = ["plane-ut", "plane-ut-short", "plane-vt", "plane-vt-short"]
 SIZE = (12, 9)
 
 

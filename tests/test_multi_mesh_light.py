@@ -40,6 +40,8 @@ def reference(scene):
     # nowhere else); make test-slow. The short set below covers the mesh light's MIS.
     pytest.param("mis:sphere+cone+cylinder+disk+hyperboloid+torus", marks=pytest.mark.slow),
     "mis-power:plane-t1t2-short+cone-short+cylinder-short+disk-short+hyperboloid-short",
+    # The light strips on triangles: the barycentric strip and its marginal pdf.
+    "mis:planes+plane-ut-short+plane-vt",
 ])
 def test_mesh_light_two_scatterings_match_reference(scene, reference, spec):
     m, se = image_mean_stats(scene, spec, 8, RenderSettings(photons=1500), seed=51)

@@ -17,7 +17,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from photon_surfaces_multi_support import MINE_K2, MINE_K3, SCENES, area_scene, point_scene, unit
+from photon_surfaces_multi_support import (
+    MINE_K2,
+    MINE_K3,
+    MINE_LIGHT,
+    SCENES,
+    area_scene,
+    point_scene,
+    unit,
+)
 
 from psurf_core.binning import candidate_pairs
 from psurf_core.camera import camera_rays
@@ -144,7 +152,8 @@ def path_f(rec, beta, scene, rays, ray):
 
 
 CONSIST = [("area2", n) for n in MINE_K2] + [("point2", n) for n in MINE_K2] + \
-          [("area3", n) for n in MINE_K3 + ["cone", "hyperboloid", "torus"]]
+          [("area3", n) for n in MINE_K3 + ["cone", "hyperboloid", "torus"]] + \
+          [(k, n) for k in ("area2", "area3") for n in MINE_LIGHT]
 
 
 @pytest.mark.parametrize(("scene_key", "name"), CONSIST)
@@ -173,10 +182,10 @@ def test_value_times_density_is_path_function(scene_key, name):
     assert n_valid > 200
 
 
-@pytest.mark.parametrize("name", MINE_K2 + MINE_K3)
+@pytest.mark.parametrize("name", MINE_K2 + MINE_K3 + MINE_LIGHT)
 def test_bounds_are_conservative(name):
     """Binning by the primitives' bounds finds exactly the hits of all ray x primitive pairs."""
-    scene = area_scene(3) if name in MINE_K3 else point_scene(2)
+    scene = area_scene(3) if name in MINE_K3 + MINE_LIGHT else point_scene(2)
     blockers = blockers_of(scene)
     rays = camera_rays(scene, 1, np.random.default_rng(13), blockers=blockers)
     paths = trace(scene, 300, np.random.default_rng(14), blockers=blockers)
@@ -192,7 +201,7 @@ def test_bounds_are_conservative(name):
 
 def test_mis_weights_sum_to_one_on_reconstructed_paths():
     scene = area_scene(2)
-    group = [get_technique(n) for n in ["plane-t1t2", *MINE_K2]]
+    group = [get_technique(n) for n in ["plane-t1t2", *MINE_K2, "plane-ut-short", "plane-vt"]]
     blockers = blockers_of(scene)
     rays = camera_rays(scene, 1, np.random.default_rng(5), blockers=blockers)
     paths = trace(scene, 800, np.random.default_rng(6), blockers=blockers)

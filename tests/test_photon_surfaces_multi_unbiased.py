@@ -13,7 +13,7 @@ import importlib
 
 import numpy as np
 import pytest
-from photon_surfaces_multi_support import MINE_K2, MINE_K3, SCENES, area_scene
+from photon_surfaces_multi_support import MINE_K2, MINE_K3, MINE_LIGHT, SCENES, area_scene
 
 from psurf_core.estimators import parse_estimator
 from psurf_core.render import RenderSettings, render_pass
@@ -71,6 +71,16 @@ def test_k3_generalized_planes_agree_with_planes(name):
     assert got[1] < 0.1 * got[0]
 
 
+@pytest.mark.parametrize(("scene_key", "name"),
+                         [(k, n) for k in ("area2", "area3") for n in MINE_LIGHT])
+def test_light_strips_agree_with_planes(scene_key, name):
+    """The strips move the light point and the whole later path (area3: HG g = 0.3)."""
+    got = image_mean(scene_key, name, 3000, 8, 10)
+    z = zscore(got, reference(scene_key))
+    assert abs(z) < Z_MAX, (name, got, reference(scene_key), z)
+    assert got[1] < 0.1 * got[0]
+
+
 # paper-multi is this explicit set; at K = 2 the generalized planes drop out of it.
 MIS_SETS = [("area2", "paper-multi"),
             ("area3", "mis:plane-t1t2+plane-t1t3+plane-t2t3+cone+cylinder"),
@@ -79,7 +89,11 @@ MIS_SETS = [("area2", "paper-multi"),
             # area3's long set cover the same members).
             pytest.param("point2", "mis:plane-t1t2+sphere+cone+cylinder+disk+hyperboloid",
                          marks=pytest.mark.slow),
-            ("point2", "mis:planes+cone-short+cylinder-short+disk-short+hyperboloid-short")]
+            ("point2", "mis:planes+cone-short+cylinder-short+disk-short+hyperboloid-short"),
+            # Light strips with shares, and at a point light (where they make nothing).
+            ("area2", "mis:planes+plane-ut-short+plane-vt-short@0.3+cone-short@0.2"),
+            ("area3", "mis:planes+plane-ut@0.5+plane-vt-short+plane-t2t3-short@0.3"),
+            ("point2", "mis:planes+plane-ut-short")]
 
 
 @pytest.mark.parametrize(("scene_key", "name"), MIS_SETS)

@@ -42,7 +42,7 @@ TECHS = ["plane-t1t2", "planes", "plane-t1t3", "plane-t2t3-short", "cone", "cone
          "cylinder", "cylinder-short", "sphere", "disk", "disk-short", "hyperboloid",
          "hyperboloid-short", "torus", "ss-sphere", "ss-cone", "ss-cone-short", "ss-disk",
          "ss-disk-short", "ss-plane-uv", "ss-plane-ut", "ss-plane-ut-short", "ss-plane-vt",
-         "ss-plane-vt-short"]
+         "ss-plane-vt-short", "plane-ut", "plane-ut-short", "plane-vt-short"]
 RTOL = 1e-13
 
 
