@@ -10,8 +10,10 @@ Rungs (each changes one thing from the one above it):
 3. ``paper-multi`` as it runs (walkers with the fused MIS weight);
 4. its members short (each surface cut at the photon's own flights);
 5. short members with sample counts (``@share``: the helpers sweep a share of the photons);
-6. ``fast-multi`` (two helpers kept: ``planes`` + ``plane-t2t3-short@0.3`` +
-   ``cone-short@0.2``).
+6. two helpers kept: ``planes`` + ``plane-t2t3-short@0.3`` + ``cone-short@0.2`` (``fast-multi``
+   until 2026-12-05);
+7. ``fast-multi`` as it is: for an area light the light strips that face the camera in place
+   of ``plane-t2t3-short@0.3`` (docs/study.md, "Light strips").
 
 Per rung: ``Vp``, one photon's variance (mean per-pixel variance of passes through the pixel
 centres times the photons a pass; the same for rungs 1-3, which differ only in how the same
@@ -66,7 +68,9 @@ RUNGS = (
     ("3. + fused MIS weight (paper-multi today)", "paper-multi", ""),
     ("4. + short members", SHORT, ""),
     ("5. + sample counts (@share)", SHARED, ""),
-    ("6. fast-multi (two helpers)", "fast-multi", ""),
+    ("6. two helpers (fast-multi until 12-05)",
+     "mis:planes+plane-t2t3-short@0.3+cone-short@0.2", ""),
+    ("7. + light strips (fast-multi today)", "fast-multi", ""),
 )
 
 
