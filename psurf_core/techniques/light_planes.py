@@ -60,7 +60,7 @@ from . import grids
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
 from .bounds import wedge_hull
 from .single import sweep_bounds
-from .surface_common import NDP_MIN, beta1, box_reach, camera_term, gather, plane_solve
+from .surface_common import NDP_MIN, beta1, box_reach, camera_term, plane_solve
 
 
 class LPlaneGeometry(NamedTuple):
@@ -328,25 +328,28 @@ class LightPlane(Technique):
         K = (np.concatenate([np.full(s.size, k) for s, k in
                              zip(sel, self.k_range(scene, paths.depth), strict=True)])
              if sel else np.zeros(0, np.int64))
-        lt = photon_table(paths, scene)[photon]
-        p_uv, p_u, p_v = position_pdfs(lt.kind, lt.pk, lt.u, lt.v)
+        # The light columns this strip reads (plain-array gathers: indexing the record table
+        # itself copies every field), and the photon's segments from x_{K-1} on.
+        tab = photon_table(paths, scene)
         ut = self.which == "ut"
+        kind, pk, u, v = (tab[f][photon] for f in ("kind", "pk", "u", "v"))
+        p_uv, p_u, p_v = position_pdfs(kind, pk, u, v)
         p_kept = p_v if ut else p_u
-        w_e = paths.w[photon, 0]
         # Back-side emission (zero f) and a kept coordinate of zero pdf are measure-zero.
-        keep = (dot(w_e, lt.axis) > 0.0) & (p_kept > 0.0)
-        photon, K, lt, p_uv, p_kept = photon[keep], K[keep], lt[keep], p_uv[keep], p_kept[keep]
-        g = gather(paths, photon, K)
+        keep = (dot(paths.w[photon, 0], tab["axis"][photon]) > 0.0) & (p_kept > 0.0)
+        photon, K, kind, u, v = photon[keep], K[keep], kind[keep], u[keep], v[keep]
+        p_uv, p_kept = p_uv[keep], p_kept[keep]
         k3 = K >= 3
         xL, wK, TK = paths.x[photon, 0], paths.w[photon, 0], paths.t[photon, 0]
-        w2 = np.where(k3[:, None], g["w2"], 0.0)
-        T2 = np.where(k3, g["T2"], 0.0)
-        R = T2[:, None] * w2 + g["T1"][:, None] * g["w1"]
-        tri = lt.kind == MESH
+        w1, T1 = paths.w[photon, K - 1], paths.t[photon, K - 1]
+        w2 = np.where(k3[:, None], paths.w[photon, K - 2], 0.0)
+        T2 = np.where(k3, paths.t[photon, K - 2], 0.0)
+        R = T2[:, None] * w2 + T1[:, None] * w1
+        tri = kind == MESH
         if ut:
-            A, a0, amax = lt.eu, lt.u, np.where(tri, 1.0 - lt.v, 1.0)
+            A, a0, amax = tab["eu"][photon], u, np.where(tri, 1.0 - v, 1.0)
         else:
-            A, a0, amax = lt.ev, lt.v, np.where(tri, 1.0 - lt.u, 1.0)
+            A, a0, amax = tab["ev"][photon], v, np.where(tri, 1.0 - u, 1.0)
         org = xL - a0[:, None] * A + R
         end = org + amax[:, None] * A
         lo0, hi0 = np.minimum(org, end), np.maximum(org, end)
@@ -359,7 +362,7 @@ class LightPlane(Technique):
                                        + amax * np.linalg.norm(A, axis=1))
         hull = wedge_hull(scene, org, A, wK, amax, reach)
         data = table(LPlaneGeometry, org=org, A=A, B=wK, amax=amax, TK=TK, a0=a0, xL=xL,
-                     w2=w2, T2=T2, w1=g["w1"], T1=g["T1"], p_ratio=p_uv / p_kept,
+                     w2=w2, T2=T2, w1=w1, T1=T1, p_ratio=p_uv / p_kept,
                      beta=beta1(paths, photon, K))
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
 
