@@ -82,3 +82,27 @@ def test_reconstructed_light_point_lies_on_the_light(k, name):
         np.testing.assert_allclose(rec.uv[:, kept], paths.light_uv[ph, kept], atol=1e-12)
         n += len(hits)
     assert n > 100
+
+
+def _members(scene):
+    from psurf_core.estimators import parse_estimator
+
+    return [t.label for g in parse_estimator("fast-multi", scene).groups for t in g]
+
+
+def test_fast_multi_takes_the_strips_that_face_the_camera():
+    """The study scenes' light has ``e_v`` along the view: its ``[v, t]`` strips are seen
+    edge-on, its ``[u, t]`` strips face the camera; swapping the edges swaps the choice; a
+    point light keeps ``plane-t2t3-short@0.3`` instead."""
+    import dataclasses
+
+    from psurf_core.scene_io import load_scene
+
+    scene = load_scene("scenes/study_medium.toml").with_scatter(2, 3)
+    assert _members(scene) == ["plane-t1t2-short", "plane-ut-short", "cone-short@0.2"]
+    lt = scene.lights[0]
+    swapped = dataclasses.replace(scene, lights=(dataclasses.replace(
+        lt, edge_u=lt.edge_v, edge_v=lt.edge_u),))
+    assert _members(swapped) == ["plane-t1t2-short", "plane-vt-short", "cone-short@0.2"]
+    point = load_scene("scenes/point.toml").with_scatter(2, 3)
+    assert _members(point) == ["plane-t1t2-short", "plane-t2t3-short@0.3", "cone-short@0.2"]
