@@ -122,8 +122,8 @@ def test_dropping_escaped_photons_biases(monkeypatch, name):
 
 
 # ------------------------------------------------------------------------------ slow matrix
-SLOW = ([("area2", n) for n in MINE_K2] + [("point2", n) for n in MINE_K2]
-        + [("area3", n) for n in MINE_K3 + MINE_K2]
+SLOW = ([("area2", n) for n in MINE_K2 + MINE_LIGHT] + [("point2", n) for n in MINE_K2]
+        + [("area3", n) for n in MINE_K3 + MINE_K2 + MINE_LIGHT]
         + [(k, "mis:plane-t1t2+plane-t1t3-short+plane-t2t3+sphere+disk+hyperboloid+torus")
            for k in ("area2", "point2", "area3")])
 
