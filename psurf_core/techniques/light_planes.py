@@ -145,17 +145,21 @@ def segments(G, x0, hit):
     """The rebuilt path's segments: ``x_K* -> x_{K-1}*``, ``x_{K-1}* -> x_1*`` and
     ``x_1* -> x0``; at K = 2, where the middle one is a point, the first again (its twin's
     status there is CLEAR: nothing is deferred to it)."""
-    xl, xm, x1 = vertices(G, hit)
+    return _pairs(G, x0, *vertices(G, hit))
+
+
+def _pairs(G, x0, xl, xm, x1):
+    """:func:`segments` from the rebuilt vertices."""
     k3 = (G.T2 > 0.0)[:, None]
     return [(xl, xm), (np.where(k3, xm, xl), np.where(k3, x1, xm)), (x1, x0)]
 
 
 def visibility(G, x0, hit, medium, blockers):
     """(H,) bool: ``x_{K-1}*`` and ``x_1*`` in the box, and the rebuilt segments clear."""
-    _, xm, x1 = vertices(G, hit)
+    xl, xm, x1 = vertices(G, hit)
     ok = (inside_box(xm, medium.bounds_min, medium.bounds_max)
           & inside_box(x1, medium.bounds_min, medium.bounds_max))
-    return segments_clear(blockers, *segments(G, x0, hit), ok=ok)
+    return segments_clear(blockers, *_pairs(G, x0, xl, xm, x1), ok=ok)
 
 
 @twin(visibility, inline=True)
@@ -232,22 +236,30 @@ def _reconstruct_vt(rec, G, hit):
     return _moved(rec, G, hit, rec.uv[0], hit.a)
 
 
+def emission(rec):
+    """(H, 3) the record's emission direction ``w_K`` (``w2`` at K = 2, ``w3`` at K = 3)."""
+    return np.where((rec.K >= 3)[:, None], rec.w3, rec.w2)
+
+
+@twin(emission)
+def _emission(rec):
+    return rec.w3 if rec.K >= 3 else rec.w2
+
+
 def density(p_kept, edge, rec, short):
     """Relative ``Q`` of a light strip (module docstring): ``p_kept`` the pdf of the light
     coordinate it keeps, ``edge`` the one it sweeps."""
     k3 = rec.K >= 3
-    wK = np.where(k3[:, None], rec.w3, rec.w2)
     q = (p_kept / rec.pdf.uv * rec.pdf.w2 * np.where(k3, rec.pdf.t2, 1.0) * rec.pdf.w1
-         * rec.pdf.t1 * np.abs(dot(cross(edge, wK), rec.psi)))
+         * rec.pdf.t1 * np.abs(dot(cross(edge, emission(rec)), rec.psi)))
     return q * np.where(k3, rec.pdf.e3, rec.pdf.e2) if short else q
 
 
 @twin(density)
 def _density(p_kept, edge, rec, short):
     k3 = rec.K >= 3
-    wK = rec.w3 if k3 else rec.w2
     q = (p_kept / rec.pdf.uv * rec.pdf.w2 * (rec.pdf.t2 if k3 else 1.0) * rec.pdf.w1
-         * rec.pdf.t1 * abs(dot(cross(edge, wK), rec.psi)))
+         * rec.pdf.t1 * abs(dot(cross(edge, emission(rec)), rec.psi)))
     if short:
         return q * (rec.pdf.e3 if k3 else rec.pdf.e2)
     return q
@@ -322,11 +334,11 @@ class LightPlane(Technique):
         lmask = self.light_mask(paths, scene)
         # Every segment up to K is sampled whatever the photon's own vertices did (spec 4;
         # LOOKBACK = 3 >= K): only the light vertex (always valid) is kept.
+        ks = list(self.k_range(scene, paths.depth))
         sel = [np.flatnonzero(lmask & paths.alive[:, k - 1] & paths.prefix_ok[:, 0])
-               for k in self.k_range(scene, paths.depth)]
+               for k in ks]
         photon = np.concatenate(sel) if sel else np.zeros(0, np.int64)
-        K = (np.concatenate([np.full(s.size, k) for s, k in
-                             zip(sel, self.k_range(scene, paths.depth), strict=True)])
+        K = (np.concatenate([np.full(s.size, k) for s, k in zip(sel, ks, strict=True)])
              if sel else np.zeros(0, np.int64))
         # The light columns this strip reads (plain-array gathers: indexing the record table
         # itself copies every field), and the photon's segments from x_{K-1} on.
@@ -368,6 +380,5 @@ class LightPlane(Technique):
 
     def scaled_normal(self, rec):
         """(H, 3) ``e_u x w_K`` / ``e_v x w_K`` on records ``rec``."""
-        wK = np.where((rec.K >= 3)[:, None], rec.w3, rec.w2)
-        return scaled_normal(self.which, rec.eu, rec.ev, wK)
+        return scaled_normal(self.which, rec.eu, rec.ev, emission(rec))
 
