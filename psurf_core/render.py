@@ -19,6 +19,7 @@ from .camera import Rays, camera_rays
 from .constants import DEFAULT_MEMORY_BUDGET_MIB
 from .estimators import Estimator
 from .geometry import Blockers, blockers_of
+from .interrupt import check
 from .kernels.fused import MisSet, fused_pass
 from .mis import mis_weights
 from .scene import Scene
@@ -150,6 +151,7 @@ def photon_pass(
                     record.prims[(tech.name, b)] = prims
                 chunks, compiled = _chunks(tech, prims, paths, rays, ctx, mis, emit, out)
                 for hits, raw, w in chunks:
+                    check()  # a held Ctrl-C (interrupt.held): between chunks
                     if len(hits) == 0:
                         continue
                     # The compiled walker added final values to ``out`` itself.
@@ -340,6 +342,7 @@ def render(
     t0 = time.perf_counter()
     done_before = acc.n
     while True:
+        check()
         i = acc.n
         acc.add(render_pass(scene, estimator, i, seed, settings, blockers=blockers))
         elapsed = time.perf_counter() - t0

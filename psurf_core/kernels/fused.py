@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..binning import _chunk_bounds, _spans, screen_rects
+from ..interrupt import check
 from ..memo import memo
 from ..records import dtype_of, flat, widths
 from ..scene import medium_row
@@ -176,6 +177,7 @@ class _Run:
         bounds = _chunk_bounds((s_c1 - s_c0) * per_pix, self.ctx.max_pairs)
         threads = thread_count()
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            check()  # a held Ctrl-C (interrupt.held): between chunks
             n_cand = int(cand[a:b].sum())
             th = threads if n_cand >= THREADED_MIN_PAIRS else 1
             res = self.walk_chunk(spans, cand, a, b, th)

@@ -16,6 +16,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 from numba import get_num_threads
 
+from ..interrupt import check
+
 #: Pieces per thread a shared job is cut into (a chunk: equal candidate pairs each; hull
 #: spans: equal primitives each), handed out in order to whichever thread is free: a thread
 #: that loses its core to another process does not hold the others back by more than one
@@ -90,11 +92,15 @@ if hasattr(os, "register_at_fork"):
 def on_threads(fn, n: int, threads: int) -> None:
     """``fn(j)`` for ``j = 0 .. n - 1`` on ``threads`` threads (this one and ``threads - 1``
     helpers), each taking the next ``j`` when free. An exception (Ctrl-C included) stops the
-    handing out; the helpers finish the item they hold, then it is re-raised."""
+    handing out; the helpers finish the item they hold, then it is re-raised. On the main
+    thread a Ctrl-C held by :func:`psurf_core.interrupt.held` is raised before each item."""
     # On a helper thread (a piece that hands out pieces itself) the pool's only free thread
     # may be this one: waiting for a queued piece would wait for ever. Run them here.
+    on_main = threading.current_thread() is threading.main_thread()
     if threads <= 1 or threading.current_thread().name.startswith(_POOL_NAME):
         for j in range(n):
+            if on_main:
+                check()
             fn(j)
         return
     pool = _HELPERS.get(threads - 1)
@@ -104,8 +110,10 @@ def on_threads(fn, n: int, threads: int) -> None:
     lock = threading.Lock()
     stop = []
 
-    def work():
+    def work(main=False):
         while not stop:
+            if main:
+                check()
             with lock:
                 j = next(items, None)
             if j is None:
@@ -114,7 +122,7 @@ def on_threads(fn, n: int, threads: int) -> None:
 
     helpers = [pool.submit(work) for _ in range(threads - 1)]
     try:
-        work()
+        work(on_main)
     except BaseException:
         stop.append(True)
         raise

@@ -14,10 +14,11 @@ import argparse
 import contextlib
 import math
 import os
-import signal
 import sys
 
 import numpy as np
+
+from psurf_core.interrupt import held
 
 from .suggest import (  # noqa: F401 - the command line's shared names live here
     CliError,
@@ -344,18 +345,11 @@ def png_writer(linear_rgb):
     return write
 
 
-@contextlib.contextmanager
 def sigint_deferred():
-    """Ignore Ctrl-C while files are moved into place (main thread only; else a no-op)."""
-    try:
-        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, old)
+    """No Ctrl-C while the last files are moved into place: the run is ending (saved after an
+    interrupt or a failure, or done), so a SIGINT meanwhile is dropped. Main thread only; else
+    a no-op."""
+    return held(second_raises=False, reraise=False)
 
 
 def _pad16(frame):
