@@ -33,6 +33,7 @@ from .jit import inline, kernel
 from .rays import RayRow
 from .shadow import BLOCKED
 from .vec import madd
+from .views import borrowed
 
 _WALKERS: dict = {}
 
@@ -72,6 +73,8 @@ def _build(fam, weight):
         ``lim``), compact rows from ``na``. Returns the next free full and compact rows and
         the number of hits (occluded ones included: every hit is shaded)."""
         n_hits = 0
+        # Passed to the shadow test at every hit: without its reference count (.views).
+        shadow = borrowed(blockers)
         i = i0
         while i < i1:
             # One primitive's spans are consecutive (one per image row): its geometry and,
@@ -99,7 +102,7 @@ def _build(fam, weight):
                             continue
                         n_hits += 1
                         x0 = madd(ray.o, s, ray.psi)
-                        st = visibility(G, x0, hit, medium, blockers)
+                        st = visibility(G, x0, hit, medium, shadow)
                         if st[0] == BLOCKED or st[1] == BLOCKED or st[2] == BLOCKED:
                             scal = 0.0
                         else:
