@@ -161,3 +161,30 @@ def test_sigint_mid_render_then_resume_gives_the_uninterrupted_npz(work):
         out, err = proc.communicate(timeout=180)
         assert proc.returncode == 0, err
     same_image(load(work / "resumed.npz"), load(work / "full.npz"))
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_sigint_mid_compare_exits_130_at_once(work):
+    # compare renders in this process under interrupt.held: Ctrl-C stops it promptly with
+    # one line and exit 130, whichever stage it lands in (tests/test_interrupt.py holds the
+    # safe points themselves).
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    p = subprocess.Popen([sys.executable, str(ROOT / "app.py"), "compare", "scene.toml",
+                          "--estimators", "planes", "--time", "60", "--runs", "1",
+                          "--out", "cmp"], cwd=work, env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
+    try:
+        time.sleep(8)  # past start-up: the reference or the timed render is running
+        assert p.poll() is None, p.communicate()
+        p.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        out, err = p.communicate(timeout=60)
+        waited = time.monotonic() - sent
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    assert p.returncode == 130, (out, err)
+    assert "interrupted" in one_line(err)
+    assert waited < 30, waited  # not at the end of the 60 s render
+    assert not (work / "cmp" / "compare.json").exists()

@@ -19,6 +19,8 @@ import shlex
 import sys
 import textwrap
 
+from psurf_core.interrupt import held
+
 from .common import (
     PROG,
     CliError,
@@ -333,7 +335,8 @@ def run_compare(args) -> int:
                 study = st.compare(scene, ests, args.time,
                                    runner=partial(render_parallel, pool=pool), **kw)
         else:
-            study = st.compare(scene, ests, args.time, **kw)
+            with held():  # Ctrl-C raised between pieces of work, never mid-call
+                study = st.compare(scene, ests, args.time, **kw)
     except WorkersLostError as e:  # mid-run: not a bad input
         fail(f"--{'dask' if args.dask is not None else 'workers'}: {e}")
         return 1
