@@ -218,23 +218,22 @@ def test_mis_weights_sum_to_one_on_reconstructed_paths():
 
 
 @pytest.mark.parametrize("k", [2, 3])
-def test_short_members_densities_are_their_jacobians_times_constants(k):
+def test_short_members_densities_are_their_short_ratios_times_shared_pdfs(k):
     # For short (track-length) members every integrated flight's E(t*) / p(t*) is 1 / st and
-    # an integrated azimuth's 1 / p(ph) is 2 pi, so on any path Q_j = C(path) c_j |n_j . psi|:
-    # the balance weights of an all-short set are ratios of scaled normals, pdfs cancelled
-    # (the lever of docs/study.md, "MIS weights of short sets"). st = 0.75, HG g = 0.3.
+    # an integrated azimuth's 1 / p(ph) is 2 pi, so on any path Q_j = P(path) short_ratio_j:
+    # the pdfs P every member shares cancel from an all-short set's weights, which
+    # kernels.mis then takes from the short ratios (study_medium: st = 0.75; HG g = 0.3).
+    # The constants by hand: planes |n.psi| / st^2, the strip's / st, the cone's 2 pi / st.
     from pathlib import Path
 
     from psurf_core.scene import Phase
     from psurf_core.scene_io import load_scene
 
     scene = load_scene(Path(__file__).resolve().parent.parent / "scenes" / "study_medium.toml")
-    scene = scene.with_scatter(k, k)
-    scene = scene.with_medium(phase=Phase("hg", 0.3))
+    scene = scene.with_scatter(k, k).with_medium(phase=Phase("hg", 0.3))
     st = scene.medium.sigma_t
-    names = ["plane-t1t2-short", "plane-ut-short", "cone-short"]
-    c = np.array([1.0, st, 2.0 * np.pi * st])  # relative to photon planes' (two flights)
-    group = [get_technique(n) for n in names]
+    group = [get_technique(n) for n in ["plane-t1t2-short", "plane-ut-short", "cone-short"]]
+    by_hand = np.array([1.0 / st**2, 1.0 / st, 2.0 * np.pi / st])
     blockers = blockers_of(scene)
     rays = camera_rays(scene, 1, np.random.default_rng(5), blockers=blockers)
     paths = trace(scene, 150, np.random.default_rng(6), blockers=blockers)
@@ -242,10 +241,13 @@ def test_short_members_densities_are_their_jacobians_times_constants(k):
         n = 0
         for _hits, _prims, val, rec, ctx in all_hits(tech, scene, paths, rays):
             q = member_densities(rec, group, ctx)
+            r = np.array([m.compiled.short_ratio(rec) for m in group])
             ndp = np.array([np.abs(_dot(m.scaled_normal(rec), rec.psi)) for m in group])
             v = val[:, 0] > 0
-            ratio = q[:, v] / (c[:, None] * ndp[:, v])
-            np.testing.assert_allclose(ratio / ratio[0], 1.0, rtol=1e-9)
+            shared = q[:, v] / r[:, v]  # P(path): the same for every member
+            np.testing.assert_allclose(shared / shared[0], 1.0, rtol=1e-9)
+            hand = q[:, v] / (by_hand[:, None] * ndp[:, v])
+            np.testing.assert_allclose(hand / hand[0], 1.0, rtol=1e-9)
             n += int(v.sum())
         assert n > 50, (tech.name, n)
 

@@ -218,6 +218,7 @@ def test_family_twins_agree_on_a_pass(name, path):
                         ray[hits_k], hits_s)
     rec = fam.reconstruct(rec, Gh, hit)
     q = fam.density(rec, tech.short)
+    ratio = fam.short_ratio(rec) if fam.short_ratio is not None else None
     lights = flat(photon_table(paths, scene))
     for j, i in enumerate(hits_k[:300]):
         p = prim[i]
@@ -229,6 +230,8 @@ def test_family_twins_agree_on_a_pass(name, path):
         for f in ("K", "kind", "w3", "w2", "w1", "t3", "t2", "t1", "psi", "pdf"):
             close(np.ravel(getattr(row, f)), np.ravel(getattr(want_row, f)), f"{name} row.{f}")
         close(compiled(fam.density, 2)(row, tech.short), q[j], f"{name} density {j}")
+        if ratio is not None:
+            close(compiled(fam.short_ratio, 1)(row), ratio[j], f"{name} short_ratio {j}")
 
 
 def test_mis_presets_only_use_compiled_members_where_declared():

@@ -16,10 +16,15 @@ product, an exponential) is computed once.
 
 The shares and whether each member is short are a run-time array (:func:`member_params`):
 a share of 0 switches a member off, so an estimator ``SPEC~A`` (the window's member toggles)
-runs the kernels compiled for ``SPEC``; allocations (``cone@0.25``) and short or long members
-compile nothing new either. Members whose family has no compiled
-density make :func:`weight_of` return None (the numpy weights of :mod:`psurf_core.mis` run
-instead).
+runs the kernels compiled for ``SPEC``; allocations (``cone@0.25``) compile nothing new
+either, and short or long members nothing but this: where every member is short and its
+family has a ``short_ratio`` (``fast-multi``'s planes, light strips and cones), the pdfs
+every member shares cancel from the heuristic, and the weight takes each member's
+``short_ratio`` (its Jacobian and constants: ``E(t*) / p(t*) = 1 / st`` for each short flight)
+instead of its density. The two agree to rounding (``tests/test_walkers.py`` holds the
+compiled weights to the numpy ones of :mod:`psurf_core.mis`, which weigh densities), and the
+exponentials and phase functions of the reconstructed path go unused. Members whose family
+has no compiled density make :func:`weight_of` return None (the numpy weights run instead).
 """
 
 from __future__ import annotations
@@ -45,14 +50,14 @@ def member_params(full_group, shares) -> np.ndarray:
         [np.asarray(shares, dtype=float), [float(bool(m.short)) for m in full_group]]))
 
 
-def _member(density, min_k, max_k, mask, power):
+def _member(density, min_k, max_k, mask, power, ratio=False):
     """``(n Q)^b`` of a member on ``row`` for its share ``n`` and shortness ``short`` (0
     where it is off or cannot produce the path; ``nan_to_num(|Q|)`` as
     :func:`psurf_core.mis.member_densities`). A :func:`~.jit.scalar` function, built once
     per member kind (:func:`member_key`) and heuristic and shared by every set and walker
     it appears in: numba types it once, where an inlined copy was typed again in each of
     a set's walkers; LLVM inlines it all the same."""
-    key = (density, min_k, max_k, mask, power)
+    key = (density, min_k, max_k, mask, power, ratio)
     if key not in _TERMS:
 
         @scalar
@@ -61,7 +66,7 @@ def _member(density, min_k, max_k, mask, power):
                 return 0.0
             if row.K < min_k or (max_k >= 0 and row.K > max_k) or (mask >> row.kind) & 1 == 0:
                 return 0.0
-            v = abs(density(row, short))
+            v = abs(density(row) if ratio else density(row, short))
             if not v < np.inf:  # NaN and inf count as 0
                 v = 0.0
             v = n * v
@@ -107,11 +112,15 @@ def weight_of(group, me: int, weighting: str | None):
         return None, None
     power = weighting == "power"
     keys = tuple(member_key(m) for m in group)
-    key = (keys, me, power)
+    # Every member short: the pdfs every member shares cancel from the heuristics, and
+    # what is left of each density is its ``short_ratio`` (a Jacobian and constants).
+    ratio = all(m.short and f.short_ratio is not None for m, f in zip(group, fams,
+                                                                      strict=True))
+    key = (keys, me, power, ratio)
     # Built once per key: composing makes numba dispatchers (~0.2 ms each), which every
     # pass would otherwise pay again before the walker cache recognises the key.
     if key not in _WEIGHTS:
-        _WEIGHTS[key] = _compose(fams, keys, me, power)
+        _WEIGHTS[key] = _compose(fams, keys, me, power, ratio)
     return _WEIGHTS[key], key
 
 
@@ -119,8 +128,9 @@ def weight_of(group, me: int, weighting: str | None):
 _WEIGHTS: dict = {}
 
 
-def _compose(fams, keys, me, power):
-    terms = [_term(_member(f.density, *keys[j][3:], power), j) for j, f in enumerate(fams)]
+def _compose(fams, keys, me, power, ratio):
+    terms = [_term(_member(f.short_ratio if ratio else f.density, *keys[j][3:], power, ratio),
+                   j) for j, f in enumerate(fams)]
     total, mine = _sum(terms), terms[me]
 
     @inline

@@ -46,6 +46,11 @@ class Compiled:
     reconstruct, density : callable or None
         The full path of a hit and the family's MIS density, with compiled twins; None:
         its hits cannot be weighted in compiled code.
+    short_ratio : callable or None
+        ``short_ratio(rec)``: the short variant's density over the path's pdfs, which every
+        member shares (its Jacobian and constants only; compiled twin); where every member
+        of an MIS set has one and is short, the compiled weights use these
+        (:mod:`psurf_core.kernels.mis`). None: the set weighs densities.
     """
 
     geometry: type
@@ -58,6 +63,7 @@ class Compiled:
     segments: object
     reconstruct: object = None
     density: object = None
+    short_ratio: object = None
 
 
 @dataclass

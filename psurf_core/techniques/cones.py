@@ -158,19 +158,39 @@ def _reconstruct(rec, G, hit):
     return with_w1(with_t1(rec, hit.t1), hit.w1)
 
 
+def jacobian(rec):
+    """(H,) ``|t1 (w2 - c1 w1) . psi|`` on records ``rec``: the cone's change of variables."""
+    return np.abs(dot(scaled_normal(rec.w2, rec.w1, rec.t1), rec.psi))
+
+
+@twin(jacobian)
+def _jacobian(rec):
+    return abs(dot(scaled_normal(rec.w2, rec.w1, rec.t1), rec.psi))
+
+
 def density(rec, short):
     """Relative ``Q = q_{<=w2} p(t2) 2pi rho(c1) t1 |(w2 - c1 w1) . psi|`` (short:
     ``* E(t1)``)."""
-    n = scaled_normal(rec.w2, rec.w1, rec.t1)
-    q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * np.abs(dot(n, rec.psi))
+    q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * jacobian(rec)
     return q * rec.pdf.e1 if short else q
 
 
 @twin(density)
 def _density(rec, short):
-    n = scaled_normal(rec.w2, rec.w1, rec.t1)
-    q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * abs(dot(n, rec.psi))
+    q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * jacobian(rec)
     return q * rec.pdf.e1 if short else q
+
+
+def short_ratio(rec):
+    """(H,) the short cone's ``Q`` over the path's pdfs (as ``planes.short_ratio``):
+    ``2 pi |t1 (w2 - c1 w1) . psi| / st``: the short flight gives ``E(t1*) / p(t1*) = 1 / st``,
+    and ``p(c1) / p(w1) = 2 pi rho(c1) / rho(c1)`` is the azimuth's ``1 / p(ph1)``."""
+    return 2.0 * np.pi * jacobian(rec) / rec.st
+
+
+@twin(short_ratio)
+def _short_ratio(rec):
+    return 2.0 * np.pi * jacobian(rec) / rec.st
 
 
 # ------------------------------------------------------------------------- drawing
@@ -187,7 +207,7 @@ class PhotonCone(Technique):
     family = "cones"
     min_k = 2
     compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
-                        segments, reconstruct, density)
+                        segments, reconstruct, density, short_ratio)
 
     names = ("cone", "cone-short")
     grid = staticmethod(surface_grid)

@@ -246,23 +246,45 @@ def _emission(rec):
     return rec.w3 if rec.K >= 3 else rec.w2
 
 
+def jacobian(p_kept, edge, rec):
+    """(H,) ``[p_kept / p(u, v)] |(edge x w_K) . psi|`` on records ``rec``: the strip's change
+    of variables with the light point's pdf traded for the kept coordinate's."""
+    return p_kept / rec.pdf.uv * np.abs(dot(cross(edge, emission(rec)), rec.psi))
+
+
+@twin(jacobian)
+def _jacobian(p_kept, edge, rec):
+    return p_kept / rec.pdf.uv * abs(dot(cross(edge, emission(rec)), rec.psi))
+
+
 def density(p_kept, edge, rec, short):
     """Relative ``Q`` of a light strip (module docstring): ``p_kept`` the pdf of the light
     coordinate it keeps, ``edge`` the one it sweeps."""
     k3 = rec.K >= 3
-    q = (p_kept / rec.pdf.uv * rec.pdf.w2 * np.where(k3, rec.pdf.t2, 1.0) * rec.pdf.w1
-         * rec.pdf.t1 * np.abs(dot(cross(edge, emission(rec)), rec.psi)))
+    q = (rec.pdf.w2 * np.where(k3, rec.pdf.t2, 1.0) * rec.pdf.w1 * rec.pdf.t1
+         * jacobian(p_kept, edge, rec))
     return q * np.where(k3, rec.pdf.e3, rec.pdf.e2) if short else q
 
 
 @twin(density)
 def _density(p_kept, edge, rec, short):
     k3 = rec.K >= 3
-    q = (p_kept / rec.pdf.uv * rec.pdf.w2 * (rec.pdf.t2 if k3 else 1.0) * rec.pdf.w1
-         * rec.pdf.t1 * abs(dot(cross(edge, emission(rec)), rec.psi)))
+    q = (rec.pdf.w2 * (rec.pdf.t2 if k3 else 1.0) * rec.pdf.w1 * rec.pdf.t1
+         * jacobian(p_kept, edge, rec))
     if short:
         return q * (rec.pdf.e3 if k3 else rec.pdf.e2)
     return q
+
+
+def short_ratio(p_kept, edge, rec):
+    """(H,) the short strip's ``Q`` over the path's pdfs (as ``planes.short_ratio``): its
+    Jacobian over ``st`` (the short emission flight's ``E(t_K*) / p(t_K*)``)."""
+    return jacobian(p_kept, edge, rec) / rec.st
+
+
+@twin(short_ratio)
+def _short_ratio(p_kept, edge, rec):
+    return jacobian(p_kept, edge, rec) / rec.st
 
 
 def density_ut(rec, short):
@@ -285,11 +307,32 @@ def _density_vt(rec, short):
     return density(rec.pdf.u, rec.ev, rec, short)
 
 
+def short_ratio_ut(rec):
+    """``short_ratio`` of ``plane-ut-short``."""
+    return short_ratio(rec.pdf.v, rec.eu, rec)
+
+
+@twin(short_ratio_ut)
+def _short_ratio_ut(rec):
+    return short_ratio(rec.pdf.v, rec.eu, rec)
+
+
+def short_ratio_vt(rec):
+    """``short_ratio`` of ``plane-vt-short``."""
+    return short_ratio(rec.pdf.u, rec.ev, rec)
+
+
+@twin(short_ratio_vt)
+def _short_ratio_vt(rec):
+    return short_ratio(rec.pdf.u, rec.ev, rec)
+
+
 _COMPILED = {
     which: Compiled(LPlaneGeometry, LPlaneHit, 1, roots, accept, visibility, contribution,
-                    segments, rec_fn, dens_fn)
-    for which, rec_fn, dens_fn in (("ut", reconstruct_ut, density_ut),
-                                   ("vt", reconstruct_vt, density_vt))
+                    segments, rec_fn, dens_fn, ratio_fn)
+    for which, rec_fn, dens_fn, ratio_fn in (
+        ("ut", reconstruct_ut, density_ut, short_ratio_ut),
+        ("vt", reconstruct_vt, density_vt, short_ratio_vt))
 }
 
 

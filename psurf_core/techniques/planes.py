@@ -192,16 +192,39 @@ def _reconstruct(rec, G, hit):
     return with_t1(with_t2(rec, hit.t2), hit.t1)  # (no compiled density reads x1)
 
 
+def jacobian(rec):
+    """(H,) ``|(w1 x w2) . psi|`` on records ``rec``: the plane's change of variables."""
+    return np.abs(dot(cross(rec.w1, rec.w2), rec.psi))
+
+
+@twin(jacobian)
+def _jacobian(rec):
+    return abs(dot(cross(rec.w1, rec.w2), rec.psi))
+
+
 def density(rec, short):
     """Relative ``Q = q_{<=w2} p(w1) |(w1 x w2) . psi|`` (short: ``* E(t1) E(t2)``)."""
-    q = q_to_w2(rec) * rec.pdf.w1 * np.abs(dot(cross(rec.w1, rec.w2), rec.psi))
+    q = q_to_w2(rec) * rec.pdf.w1 * jacobian(rec)
     return q * rec.pdf.e1 * rec.pdf.e2 if short else q
 
 
 @twin(density)
 def _density(rec, short):
-    q = q_to_w2(rec) * rec.pdf.w1 * abs(dot(cross(rec.w1, rec.w2), rec.psi))
+    q = q_to_w2(rec) * rec.pdf.w1 * jacobian(rec)
     return q * rec.pdf.e1 * rec.pdf.e2 if short else q
+
+
+def short_ratio(rec):
+    """(H,) the short plane's ``Q`` over the path's pdfs (all but the light point's, which
+    every member shares): ``|(w1 x w2) . psi| / st^2``, since each short flight's
+    ``E(t*) / p(t*)`` is ``1 / st``. The MIS weights of an all-short set weigh these
+    (:mod:`psurf_core.kernels.mis`; ``tests/test_photon_surfaces_multi_forms.py``)."""
+    return jacobian(rec) / (rec.st * rec.st)
+
+
+@twin(short_ratio)
+def _short_ratio(rec):
+    return jacobian(rec) / (rec.st * rec.st)
 
 
 # ------------------------------------------------------------------------- drawing
@@ -220,7 +243,7 @@ class PhotonPlane(Technique):
     family = "planes"
     min_k = 2
     compiled = Compiled(PlaneGeometry, PlaneHit, 1, roots, accept, visibility, contribution,
-                        segments, reconstruct, density)
+                        segments, reconstruct, density, short_ratio)
 
     names = ("plane-t1t2", "plane-t1t2-short")
     grid = staticmethod(surface_grid)
