@@ -4,10 +4,11 @@ and passes), not wherever the main thread happens to be.
 
 Python's default handler raises the ``KeyboardInterrupt`` at the next bytecode the main thread
 runs, and during a render that is often inside numba's dispatch or result boxing: there it came
-back as a ``SystemError`` (``kernels.jit.ctrl_c_kept``), was cleared by C code that retries a
-failed lookup (the render went on; the signal was lost: 1 of ~340 interrupted renders,
-2026-12-05) or crashed the process (SIGSEGV; 1 fresh-clone ``make test`` of ~30). A recorded
-signal can be neither lost nor raised mid-call. A second Ctrl-C while one is pending raises at
+back as a ``SystemError`` (``kernels.jit.ctrl_c_kept``), was lost (the render went on: 1 of
+~340 interrupted renders in a loop, 2026-12-05; most likely cleared by C code that retries a
+failed lookup), and is the likeliest cause of a SIGSEGV on Ctrl-C that one fresh-clone
+``make test`` saw (not reproduced in 600 interrupted renders since). A recorded signal can be
+neither lost nor raised mid-call. A second Ctrl-C while one is pending raises at
 once (where ``second_raises``), so code without a check point can still be stopped.
 """
 

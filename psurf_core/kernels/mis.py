@@ -53,7 +53,8 @@ def member_params(full_group, shares) -> np.ndarray:
 def _member(density, min_k, max_k, mask, power, ratio=False):
     """``(n Q)^b`` of a member on ``row`` for its share ``n`` and shortness ``short`` (0
     where it is off or cannot produce the path; ``nan_to_num(|Q|)`` as
-    :func:`psurf_core.mis.member_densities`). A :func:`~.jit.scalar` function, built once
+    :func:`psurf_core.mis.member_densities`; with ``ratio``, ``density`` is the member's
+    ``short_ratio(row)`` and ``Q`` that). A :func:`~.jit.scalar` function, built once
     per member kind (:func:`member_key`) and heuristic and shared by every set and walker
     it appears in: numba types it once, where an inlined copy was typed again in each of
     a set's walkers; LLVM inlines it all the same."""
