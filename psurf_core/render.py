@@ -19,7 +19,7 @@ from .camera import Rays, camera_rays
 from .constants import DEFAULT_MEMORY_BUDGET_MIB
 from .estimators import Estimator
 from .geometry import Blockers, blockers_of
-from .interrupt import check
+from .interrupt import check, held
 from .kernels.fused import MisSet, fused_pass
 from .mis import mis_weights
 from .scene import Scene
@@ -341,16 +341,19 @@ def render(
     blockers = blockers_of(scene)
     t0 = time.perf_counter()
     done_before = acc.n
-    while True:
-        check()
-        i = acc.n
-        acc.add(render_pass(scene, estimator, i, seed, settings, blockers=blockers))
-        elapsed = time.perf_counter() - t0
-        if on_pass is not None and on_pass(i, acc, elapsed) is False:
-            break
-        if passes is not None and acc.n >= passes:
-            break
-        if time_budget is not None and elapsed >= time_budget and acc.n > done_before:
-            break
+    # Ctrl-C (on the main thread) is raised between pieces of work, never inside a compiled
+    # call (psurf_core.interrupt).
+    with held():
+        while True:
+            check()
+            i = acc.n
+            acc.add(render_pass(scene, estimator, i, seed, settings, blockers=blockers))
+            elapsed = time.perf_counter() - t0
+            if on_pass is not None and on_pass(i, acc, elapsed) is False:
+                break
+            if passes is not None and acc.n >= passes:
+                break
+            if time_budget is not None and elapsed >= time_budget and acc.n > done_before:
+                break
     return RenderResult(acc.mean.copy(), acc.variance, acc.n, settings.photons, settings.spp,
                         time.perf_counter() - t0, estimator.spec, seed, acc)

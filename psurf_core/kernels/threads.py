@@ -96,8 +96,9 @@ def on_threads(fn, n: int, threads: int) -> None:
     thread a Ctrl-C held by :func:`psurf_core.interrupt.held` is raised before each item."""
     # On a helper thread (a piece that hands out pieces itself) the pool's only free thread
     # may be this one: waiting for a queued piece would wait for ever. Run them here.
-    on_main = threading.current_thread() is threading.main_thread()
-    if threads <= 1 or threading.current_thread().name.startswith(_POOL_NAME):
+    me = threading.current_thread()
+    on_main = me is threading.main_thread()
+    if threads <= 1 or me.name.startswith(_POOL_NAME):
         for j in range(n):
             if on_main:
                 check()

@@ -19,8 +19,6 @@ import shlex
 import sys
 import textwrap
 
-from psurf_core.interrupt import held
-
 from .common import (
     PROG,
     CliError,
@@ -335,8 +333,7 @@ def run_compare(args) -> int:
                 study = st.compare(scene, ests, args.time,
                                    runner=partial(render_parallel, pool=pool), **kw)
         else:
-            with held():  # Ctrl-C raised between pieces of work, never mid-call
-                study = st.compare(scene, ests, args.time, **kw)
+            study = st.compare(scene, ests, args.time, **kw)
     except WorkersLostError as e:  # mid-run: not a bad input
         fail(f"--{'dask' if args.dask is not None else 'workers'}: {e}")
         return 1

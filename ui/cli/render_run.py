@@ -13,8 +13,6 @@ import sys
 
 import numpy as np
 
-from psurf_core.interrupt import held
-
 from .checkpoint import (
     Checkpointer,
     CheckpointWriteError,
@@ -85,10 +83,8 @@ def run_session(args, scene, est, settings, radius, ck, ck_dir, identity, passes
         else:
             kw = dict(passes=passes, time_budget=time_budget, seed=args.seed, accumulator=acc,
                       on_pass=on_pass)
-            result = maybe_distributed(args, scene, est, settings, error=CliError, **kw)
-            if result is None:
-                with held():  # Ctrl-C raised between pieces of work, never mid-call
-                    result = render(scene, est, settings, **kw)
+            result = (maybe_distributed(args, scene, est, settings, error=CliError, **kw)
+                      or render(scene, est, settings, **kw))
     except KeyboardInterrupt:
         close()
         return report_interrupt(ckpt, args)
