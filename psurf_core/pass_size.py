@@ -18,6 +18,17 @@ previous rule, 48 passes) gave such an estimator ~10^4 photons a pass, almost al
 compiles the kernels; seeds no render uses; not counted in any budget) and returns ``N*``,
 kept within :data:`PHOTON_RANGE`, where a pass's photons cost at most :data:`OVERHEAD_CAP`
 times its fixed part, and so that the budget still holds :data:`MIN_PASSES`.
+
+``c0, c1`` come from timed passes of two sizes (:func:`pass_cost`). ``Vj, Vp`` come from
+*split* passes (:func:`split_terms`): one set of camera rays, two independent sets of ``n``
+photons each. The halves' difference holds the photons' variance alone (the rays' jitter is
+common to both and cancels): ``E[(a - b)^2] / 2 = Vp / n``; their mean has the variance
+``Vj + Vp / (2 n)`` across passes. (Taking ``Vj, Vp`` from the variances of two pass sizes
+instead, as this module did until 2026-12-05, read heavy tails as pixel variance: a photon
+plane's rare huge contributions are seen more often in larger passes, so their variance fell
+slower than ``1 / N`` and the fit called the rest ``Vj``. ``planes`` then got ~640 photons a
+pass on ``study_medium`` at K = 2..3 where ~3600 gave 0.7x its variance at equal time,
+docs/study.md.)
 """
 
 from __future__ import annotations
@@ -29,14 +40,21 @@ from dataclasses import replace
 import numpy as np
 
 from .accumulate import Welford
-from .render import RenderSettings, render_pass, warm_up
+from .camera import camera_rays
+from .geometry import blockers_of
+from .render import RenderSettings, pass_generators, pass_image, photon_pass, render_pass, warm_up
 
 #: Fewest passes a time budget should hold (a per-pixel variance estimate needs many).
 MIN_PASSES = 48
 
-#: Photons of the two pilot pass sizes, and pilot passes of each.
+#: Photons of the two timed pilot pass sizes, and pilot passes of each.
 PILOT_PHOTONS = (128, 1024)
-PILOT_PASSES = 6
+PILOT_PASSES = 8
+
+#: Split pilot passes (:func:`split_terms`), each with two halves of ``PILOT_PHOTONS[1]``
+#: photons (on ``study_medium`` at K = 2..3 twelve of them put ``Vj`` within ~20 % for
+#: ``fast-multi``, whose ``Vj`` is a third of the halves' mean's variance).
+SPLIT_PASSES = 10
 
 #: A pass's photons cost at most this many times its fixed part (see :func:`best_photons`).
 OVERHEAD_CAP = 8.0
@@ -51,17 +69,30 @@ PHOTON_RANGE = (64, 1 << 20)
 PILOT_SEED = 1 << 30
 
 
-def pass_model(sizes, seconds, variances) -> tuple[float, float, float, float]:
-    """``(c0, c1, Vj, Vp)`` from two pass sizes: their median seconds and mean per-pass
-    pixel variances (``seconds = c0 + c1 N``, ``variance = Vj + Vp / N``). ``c0`` and ``Vj``
-    are clipped at 0 and ``c1``, ``Vp`` at tiny positive values: timings and variance
-    estimates are noisy."""
-    (na, nb), (ta, tb), (va, vb) = sizes, seconds, variances
+def pass_cost(sizes, seconds) -> tuple[float, float]:
+    """``(c0, c1)`` of ``seconds = c0 + c1 N`` from the median seconds of two pass sizes;
+    ``c0`` clipped at 0 and ``c1`` at a tiny positive value (timings are noisy)."""
+    (na, nb), (ta, tb) = sizes, seconds
     c1 = max((tb - ta) / (nb - na), 1e-12)
-    c0 = max(ta - c1 * na, 0.0)
-    vp = max((va - vb) / (1.0 / na - 1.0 / nb), 1e-300)
-    vj = max(vb - vp / nb, 0.0)
-    return c0, c1, vj, vp
+    return max(ta - c1 * na, 0.0), c1
+
+
+def split_terms(n: int, mean_variance: float, half_difference: float) -> tuple[float, float]:
+    """``(Vj, Vp)`` from split passes of ``n`` photons a half (module docstring).
+
+    Parameters
+    ----------
+    n : int
+        Photons of each half.
+    mean_variance : float
+        Pixel mean of the per-pixel sample variance, across passes, of the halves' mean
+        ``(a + b) / 2``: an estimate of ``Vj + Vp / (2 n)``.
+    half_difference : float
+        Pixel and pass mean of ``(a - b)^2 / 2``: an estimate of ``Vp / n``.
+
+    ``Vp`` is clipped at a tiny positive value and ``Vj`` at 0 (estimates are noisy)."""
+    vp = max(half_difference * n, 1e-300)
+    return max(mean_variance - vp / (2.0 * n), 0.0), vp
 
 
 def best_photons(c0: float, c1: float, vj: float, vp: float, budget: float) -> int:
@@ -77,21 +108,37 @@ def best_photons(c0: float, c1: float, vj: float, vp: float, budget: float) -> i
 
 
 def pilot(scene, estimator, settings: RenderSettings) -> tuple[float, float, float, float]:
-    """:func:`pass_model` measured: :data:`PILOT_PASSES` timed passes of each of
-    :data:`PILOT_PHOTONS` (wall seconds, median) and their per-pass variance."""
-    secs, var = [], []
-    for k, n in enumerate(PILOT_PHOTONS):
-        st = replace(settings, photons=n)
-        acc = Welford.empty((scene.camera.height, scene.camera.width, 3))
-        times = []
-        for i in range(PILOT_PASSES):
+    """``(c0, c1, Vj, Vp)`` measured: :data:`PILOT_PASSES` timed passes of each of
+    :data:`PILOT_PHOTONS` (wall seconds, median; :func:`pass_cost`), then
+    :data:`SPLIT_PASSES` split passes (:func:`split_variances`)."""
+    times = [[] for _ in PILOT_PHOTONS]
+    # The sizes alternate, so that a change in the machine's load reaches both alike.
+    for i in range(PILOT_PASSES):
+        for k, n in enumerate(PILOT_PHOTONS):
             a = time.perf_counter()
-            img = render_pass(scene, estimator, i, PILOT_SEED + k, st)
-            times.append(time.perf_counter() - a)
-            acc.add(np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0))
-        secs.append(float(np.median(times)))
-        var.append(float(np.mean(acc.variance)))
-    return pass_model(PILOT_PHOTONS, secs, var)
+            render_pass(scene, estimator, i, PILOT_SEED + k, replace(settings, photons=n))
+            times[k].append(time.perf_counter() - a)
+    return (*pass_cost(PILOT_PHOTONS, [float(np.median(t)) for t in times]),
+            *split_variances(scene, estimator, replace(settings, photons=PILOT_PHOTONS[1])))
+
+
+def split_variances(scene, estimator, settings: RenderSettings) -> tuple[float, float]:
+    """``(Vj, Vp)`` of :func:`split_terms` from :data:`SPLIT_PASSES` split passes of
+    ``settings.photons`` photons a half: each pass's camera rays (``pass_generators``'s ray
+    generator) shared by two photon sets spawned from its photon seed."""
+    cam, n, blockers = scene.camera, settings.photons, blockers_of(scene)
+    acc = Welford.empty((cam.height, cam.width, 3))
+    half_difference = 0.0
+    for i in range(SPLIT_PASSES):
+        ray_rng, photon_ss = pass_generators(PILOT_SEED + len(PILOT_PHOTONS), i)
+        rays = camera_rays(scene, settings.spp, ray_rng, blockers=blockers)
+        a, b = (np.nan_to_num(pass_image(cam, rays, photon_pass(
+                    scene, estimator, rays, ss, settings, i, blockers) / n, settings.spp),
+                    nan=0.0, posinf=0.0, neginf=0.0)
+                for ss in photon_ss.spawn(2))
+        acc.add(0.5 * (a + b))
+        half_difference += float(np.mean(0.5 * (a - b) ** 2)) / SPLIT_PASSES
+    return split_terms(n, float(np.mean(acc.variance)), half_difference)
 
 
 def auto_photons(scene, estimator, settings: RenderSettings, budget: float) -> int:

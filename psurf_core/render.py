@@ -260,8 +260,14 @@ def render_pass(
     else:
         per_ray = photon_pass(scene, estimator, rays, photon_ss, settings, pass_index,
                               blockers, record, tally) / settings.photons
+    return pass_image(cam, rays, per_ray, settings.spp)
+
+
+def pass_image(cam, rays: Rays, per_ray: np.ndarray, spp: int) -> np.ndarray:
+    """(H, W, 3) the pass image of per-ray estimates ``per_ray`` ((R, 3), one per ray of
+    ``rays``): each pixel the mean of its ``spp`` rays' (pixels without rays stay 0)."""
     img = np.zeros((cam.n_pixels, 3))
-    _accumulate(img, rays.pixel, per_ray / settings.spp)
+    _accumulate(img, rays.pixel, per_ray / spp)
     return img.reshape(cam.height, cam.width, 3)
 
 

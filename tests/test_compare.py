@@ -258,14 +258,58 @@ def test_cpu_clock_budget(tiny):
     assert row["runs"][0]["curve"][-1][0] >= 0.3
 
 
-def test_pass_model_recovers_cost_and_variance_terms():
-    """Two pass sizes fix ``seconds = c0 + c1 N`` and ``variance = Vj + Vp / N``."""
+def test_pass_cost_recovers_fixed_and_per_photon_seconds():
+    """Two pass sizes fix ``seconds = c0 + c1 N``."""
     import psurf_core.pass_size as ps
 
-    c0, c1, vj, vp = 0.01, 5e-5, 4e-6, 3e-4
+    c0, c1 = 0.01, 5e-5
     sizes = (128, 1024)
-    got = ps.pass_model(sizes, [c0 + c1 * n for n in sizes], [vj + vp / n for n in sizes])
-    np.testing.assert_allclose(got, (c0, c1, vj, vp), rtol=1e-9)
+    got = ps.pass_cost(sizes, [c0 + c1 * n for n in sizes])
+    np.testing.assert_allclose(got, (c0, c1), rtol=1e-9)
+
+
+def test_split_terms_recover_pixel_and_photon_variance():
+    """Split passes (one jitter, two photon halves of ``n``), simulated: the halves'
+    difference gives ``Vp``, their mean's variance less ``Vp / 2n`` gives ``Vj``, within
+    the sampling error of 2000 pixels x 10 passes (a ``Vp / n`` in place of ``Vp / 2n``
+    misses ``Vj`` by 60 %)."""
+    import psurf_core.pass_size as ps
+
+    rng = np.random.default_rng(3)
+    vj, vp, n, m, pixels = 1.5e-7, 3.5e-4, 1024, 10, 2000
+    jitter = rng.normal(0.0, np.sqrt(vj), (m, pixels))
+    a, b = (jitter + rng.normal(0.0, np.sqrt(vp / n), (m, pixels)) for _ in range(2))
+    mean_variance = float(np.mean(np.var(0.5 * (a + b), axis=0, ddof=1)))
+    half_difference = float(np.mean(0.5 * (a - b) ** 2))
+    got_vj, got_vp = ps.split_terms(n, mean_variance, half_difference)
+    assert abs(got_vp / vp - 1.0) < 0.05
+    assert abs(got_vj / vj - 1.0) < 0.15
+    assert ps.split_terms(n, 0.0, 1e-9) == (0.0, 1e-9 * n)  # Vj clipped at 0
+
+
+def test_split_variances_share_the_rays_between_halves(monkeypatch):
+    """The two halves of a split pass see the same camera rays: an estimate that depends on
+    the rays alone reads as pixel variance (``Vp`` ~0), one that depends on the photons
+    alone as photon variance (``Vj`` ~0)."""
+    import psurf_core.pass_size as ps
+
+    scene = load_scene(Path(__file__).resolve().parent.parent / "scenes" / "area.toml")
+    scene = replace(scene, camera=replace(scene.camera, width=16, height=12))
+    est = parse_estimator("planes", scene)
+    st = RenderSettings(photons=64)
+
+    def by_rays(scene, est, rays, ss, *a):
+        return np.repeat(rays.d[:, :1] * 64.0, 3, axis=1)
+
+    def by_photons(scene, est, rays, ss, *a):
+        return np.random.default_rng(ss).normal(size=(len(rays), 3)) * 64.0
+
+    monkeypatch.setattr(ps, "photon_pass", by_rays)
+    vj, vp = ps.split_variances(scene, est, st)
+    assert vj > 1e-6 and vp < 1e-20
+    monkeypatch.setattr(ps, "photon_pass", by_photons)
+    vj, vp = ps.split_variances(scene, est, st)
+    assert vp == pytest.approx(64.0, rel=0.1) and vj < 0.05 * vp / 64
 
 
 def test_best_photons_minimises_the_equal_time_variance():
