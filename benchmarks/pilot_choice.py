@@ -6,6 +6,7 @@ both), and
 
 * ``split``: ``Vj, Vp`` from split passes (one set of camera rays, two photon halves; what
   ``pass_size.pilot`` does since 2026-12-05) and the ``N*`` they give;
+* ``pilot``: the seconds ``pass_size.pilot`` took;
 * ``two-size``: ``Vj, Vp`` fitted to the per-pass variances of the two timed sizes (6 passes
   of 128 and of 1024 photons: what ``pass_size.pilot`` did before), and its ``N*``.
 
@@ -27,6 +28,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from dataclasses import replace
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
@@ -75,11 +77,13 @@ def main(argv=None) -> None:
         warm_up(scene, est, st)
         old = two_size_terms(scene, est, st)
         for _ in range(a.repeats):
+            t = time.perf_counter()
             c0, c1, vj, vp = ps.pilot(scene, est, st)
+            t = time.perf_counter() - t
             print(f"{spec:12s} c0 {c0 * 1e3:6.2f} ms  c1 {c1 * 1e6:6.2f} us | split Vj {vj:.3g} "
                   f"Vp {vp:.3g} N* {ps.best_photons(c0, c1, vj, vp, a.budget):6d} | two-size "
                   f"Vj {old[0]:.3g} Vp {old[1]:.3g} N* "
-                  f"{ps.best_photons(c0, c1, *old, a.budget):6d}", flush=True)
+                  f"{ps.best_photons(c0, c1, *old, a.budget):6d} | pilot {t:.1f} s", flush=True)
 
 
 if __name__ == "__main__":

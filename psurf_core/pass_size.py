@@ -49,12 +49,17 @@ MIN_PASSES = 48
 
 #: Photons of the two timed pilot pass sizes, and pilot passes of each.
 PILOT_PHOTONS = (128, 1024)
-PILOT_PASSES = 8
+PILOT_PASSES = 6
 
-#: Split pilot passes (:func:`split_terms`), each with two halves of ``PILOT_PHOTONS[1]``
-#: photons (on ``study_medium`` at K = 2..3 twelve of them put ``Vj`` within ~20 % for
-#: ``fast-multi``, whose ``Vj`` is a third of the halves' mean's variance).
+#: Split pilot passes (:func:`split_terms`), each with two halves of up to
+#: ``PILOT_PHOTONS[1]`` photons (on ``study_medium`` at K = 2..3 twelve of them put ``Vj``
+#: within ~20 % for ``fast-multi``, whose ``Vj`` is a third of the halves' mean's variance).
 SPLIT_PASSES = 10
+
+#: A split pass's two halves take at most about this (s, by the timed passes' ``c0, c1``):
+#: a slow estimator's halves are smaller (``paper-full`` on ``showcase.toml``, ~0.8 ms a
+#: photon, would otherwise spend ~16 s on them), down to ``PHOTON_RANGE[0]`` photons.
+SPLIT_PASS_SECONDS = 0.2
 
 #: A pass's photons cost at most this many times its fixed part (see :func:`best_photons`).
 OVERHEAD_CAP = 8.0
@@ -110,7 +115,8 @@ def best_photons(c0: float, c1: float, vj: float, vp: float, budget: float) -> i
 def pilot(scene, estimator, settings: RenderSettings) -> tuple[float, float, float, float]:
     """``(c0, c1, Vj, Vp)`` measured: :data:`PILOT_PASSES` timed passes of each of
     :data:`PILOT_PHOTONS` (wall seconds, median; :func:`pass_cost`), then
-    :data:`SPLIT_PASSES` split passes (:func:`split_variances`)."""
+    :data:`SPLIT_PASSES` split passes (:func:`split_variances`) with halves of
+    ``PILOT_PHOTONS[1]`` photons or fewer (:data:`SPLIT_PASS_SECONDS`)."""
     times = [[] for _ in PILOT_PHOTONS]
     # The sizes alternate, so that a change in the machine's load reaches both alike.
     for i in range(PILOT_PASSES):
@@ -118,8 +124,16 @@ def pilot(scene, estimator, settings: RenderSettings) -> tuple[float, float, flo
             a = time.perf_counter()
             render_pass(scene, estimator, i, PILOT_SEED + k, replace(settings, photons=n))
             times[k].append(time.perf_counter() - a)
-    return (*pass_cost(PILOT_PHOTONS, [float(np.median(t)) for t in times]),
-            *split_variances(scene, estimator, replace(settings, photons=PILOT_PHOTONS[1])))
+    c0, c1 = pass_cost(PILOT_PHOTONS, [float(np.median(t)) for t in times])
+    half = replace(settings, photons=split_photons(c0, c1))
+    return (c0, c1, *split_variances(scene, estimator, half))
+
+
+def split_photons(c0: float, c1: float) -> int:
+    """Photons of each half of a split pass: ``PILOT_PHOTONS[1]``, or fewer where two halves
+    would take more than :data:`SPLIT_PASS_SECONDS` (at least ``PHOTON_RANGE[0]``)."""
+    n = (SPLIT_PASS_SECONDS / 2.0 - c0) / max(c1, 1e-12)
+    return int(min(max(n, PHOTON_RANGE[0]), PILOT_PHOTONS[1]))
 
 
 def split_variances(scene, estimator, settings: RenderSettings) -> tuple[float, float]:

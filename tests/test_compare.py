@@ -287,6 +287,18 @@ def test_split_terms_recover_pixel_and_photon_variance():
     assert ps.split_terms(n, 0.0, 1e-9) == (0.0, 1e-9 * n)  # Vj clipped at 0
 
 
+def test_split_photons_shrink_the_halves_of_slow_estimators():
+    """A split pass's halves are ``PILOT_PHOTONS[1]`` photons, fewer where two of them would
+    take more than ``SPLIT_PASS_SECONDS``, never under ``PHOTON_RANGE[0]``."""
+    import psurf_core.pass_size as ps
+
+    assert ps.split_photons(0.004, 12e-6) == ps.PILOT_PHOTONS[1]  # fast-multi, study_medium
+    n = ps.split_photons(0.02, 7.7e-4)  # paper-full, showcase
+    assert ps.PHOTON_RANGE[0] <= n < ps.PILOT_PHOTONS[1]
+    assert 2 * (0.02 + 7.7e-4 * n) <= ps.SPLIT_PASS_SECONDS * 1.001
+    assert ps.split_photons(1.0, 1e-3) == ps.PHOTON_RANGE[0]
+
+
 def test_split_variances_share_the_rays_between_halves(monkeypatch):
     """The two halves of a split pass see the same camera rays: an estimate that depends on
     the rays alone reads as pixel variance (``Vp`` ~0), one that depends on the photons
