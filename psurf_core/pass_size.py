@@ -52,8 +52,8 @@ PILOT_PHOTONS = (128, 1024)
 PILOT_PASSES = 6
 
 #: Split pilot passes (:func:`split_terms`), each with two halves of up to
-#: ``PILOT_PHOTONS[1]`` photons (on ``study_medium`` at K = 2..3 twelve of them put ``Vj``
-#: within ~20 % for ``fast-multi``, whose ``Vj`` is a third of the halves' mean's variance).
+#: ``PILOT_PHOTONS[1]`` photons. ``Vj`` is their least certain number: for ``fast-multi`` on
+#: ``study_medium`` at K = 2..3 it is a third of the halves' mean's variance.
 SPLIT_PASSES = 10
 
 #: A split pass's two halves take at most about this (s, by the timed passes' ``c0, c1``):
@@ -159,7 +159,20 @@ def auto_photons(scene, estimator, settings: RenderSettings, budget: float) -> i
     """Photons per pass for a render of ``estimator`` lasting ``budget`` seconds (``N*`` of
     the module docstring, measured by :func:`pilot`); the path tracer has no photons:
     ``settings.photons`` is returned."""
+    chosen = auto_pass_model(scene, estimator, settings, budget)
+    return settings.photons if chosen is None else chosen["photons"]
+
+
+def auto_pass_model(scene, estimator, settings: RenderSettings, budget: float) -> dict | None:
+    """What :func:`auto_photons` measured and chose, for the record (``compare.json``):
+    ``{"photons", "c0", "c1", "vj", "vp", "pilot_seconds"}`` (seconds, seconds a photon,
+    per-pass pixel variances as in the module docstring, the pilot's wall seconds); None for
+    the path tracer."""
     if estimator.reference:
-        return settings.photons
+        return None
     warm_up(scene, estimator, settings)
-    return best_photons(*pilot(scene, estimator, settings), budget)
+    t = time.perf_counter()
+    model = pilot(scene, estimator, settings)
+    return {"photons": best_photons(*model, budget),
+            **dict(zip(("c0", "c1", "vj", "vp"), model, strict=True)),
+            "pilot_seconds": time.perf_counter() - t}

@@ -78,7 +78,7 @@ import numpy as np
 from . import reliability as rl
 from .estimators import Estimator, parse_estimator
 from .metrics import RELMSE_EPS, relmse, relmse_map, var_relmse
-from .pass_size import auto_photons
+from .pass_size import auto_pass_model
 from .render import RenderSettings, render
 from .scene import Scene
 from .study_reference import Reference, default_reference_seconds, load_reference
@@ -222,8 +222,8 @@ def compare(
         Photons per pass, for all estimators or one per estimator (each estimator is most
         efficient with its own pass size: large enough that the per-pass overhead is small,
         small enough for many passes); ``"auto"`` (or ``"auto"`` entries): measured per
-        estimator (:func:`psurf_core.pass_size.auto_photons`); ``settings.photons`` by
-        default.
+        estimator (:func:`psurf_core.pass_size.auto_photons`; each result's
+        ``pass_model`` records the pilot's numbers); ``settings.photons`` by default.
     clock : ``"wall"`` or ``"cpu"``
         What ``seconds`` measures: wall time (``render``'s own budget), or this process's CPU
         time (``time.process_time``, checked after every pass through ``on_pass``), which other
@@ -254,8 +254,12 @@ def compare(
         photons = settings.photons
     if isinstance(photons, int | np.integer | str):
         photons = [photons] * len(ests)
-    photons = [auto_photons(scene, e, settings, seconds) if p == "auto" else int(p)
-               for e, p in zip(ests, photons, strict=False)] if len(photons) == len(ests) \
+    # The pilots' models, kept in the results ("auto" entries; None for a given count).
+    pilots = [auto_pass_model(scene, e, settings, seconds) if p == "auto" else None
+              for e, p in zip(ests, photons, strict=False)] if len(photons) == len(ests) \
+        else [None] * len(ests)
+    photons = [(settings.photons if m is None else m["photons"]) if p == "auto" else int(p)
+               for m, p in zip(pilots, photons, strict=True)] if len(photons) == len(ests) \
         else photons
     if len(photons) != len(ests) or min(photons) < 1:
         raise ValueError(f"photons: give one count > 0 or one per estimator ({len(ests)}), "
@@ -359,6 +363,7 @@ def compare(
         results.append({
             "estimator": est.spec,
             "photons_per_pass": None if est.reference else photons[k],
+            "pass_model": pilots[k],
             "passes": float(np.mean(passes)),
             "passes_per_run": passes,
             "seconds_per_run": secs,

@@ -324,6 +324,27 @@ def test_split_variances_share_the_rays_between_halves(monkeypatch):
     assert vp == pytest.approx(64.0, rel=0.1) and vj < 0.05 * vp / 64
 
 
+def test_compare_records_the_pilots_pass_model(tiny, monkeypatch):
+    """An ``auto`` estimator's result keeps what its pilot measured and chose
+    (``pass_model``); an estimator given a count has none."""
+    import psurf_core.pass_size as ps
+
+    monkeypatch.setattr(ps, "pilot", lambda *a: (0.01, 5e-5, 4e-6, 3e-4))
+    _, scene = tiny
+    s = compare(scene, ["planes", "points"], 0.2, runs=1, seed=3, photons=["auto", 150],
+                reference_seconds=0.2)
+    auto, given = s["results"]
+    assert auto["pass_model"]["photons"] == auto["photons_per_pass"] == \
+        ps.best_photons(0.01, 5e-5, 4e-6, 3e-4, 0.2)
+    assert (auto["pass_model"]["c0"], auto["pass_model"]["vp"]) == (0.01, 3e-4)
+    assert auto["pass_model"]["pilot_seconds"] >= 0.0
+    assert given["pass_model"] is None and given["photons_per_pass"] == 150
+    from psurf_core.study_report import to_json
+
+    assert json.loads(json.dumps(to_json(s), allow_nan=False))["results"][0]["pass_model"] == \
+        auto["pass_model"]
+
+
 def test_best_photons_minimises_the_equal_time_variance():
     """``N* = sqrt(Vp c0 / (Vj c1))`` beats its neighbours; clipped to PHOTON_RANGE."""
     import psurf_core.pass_size as ps
