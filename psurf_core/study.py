@@ -185,6 +185,7 @@ def compare(
     reference_seconds: float | None = None,
     progress: Callable[[str, int, float, float], None] | None = None,
     on_render: Callable[[str, object], None] | None = None,
+    on_pilot: Callable[[str, dict], None] | None = None,
     runner: Callable | None = None,
     command: str | None = None,
     photons: int | list | None = None,
@@ -212,6 +213,8 @@ def compare(
         Called after every pass of every render (``label`` e.g. ``"beams run 1/2"``).
     on_render : callable(label, RenderResult), optional
         Called after every render (the reference's label is ``"reference"``).
+    on_pilot : callable(spec, pass model), optional
+        Called after each ``"auto"`` estimator's pilot (the result's ``pass_model``).
     runner : callable, optional
         ``runner(scene, estimator, settings, time_budget=, seed=, on_pass=)`` returning a
         ``RenderResult``; :func:`psurf_core.render.render` by default (pass a partial of
@@ -255,9 +258,12 @@ def compare(
     if isinstance(photons, int | np.integer | str):
         photons = [photons] * len(ests)
     # The pilots' models, kept in the results ("auto" entries; None for a given count).
-    pilots = [auto_pass_model(scene, e, settings, seconds) if p == "auto" else None
-              for e, p in zip(ests, photons, strict=False)] if len(photons) == len(ests) \
-        else [None] * len(ests)
+    pilots = [None] * len(ests)
+    for k, (e, p) in enumerate(zip(ests, photons, strict=False)):
+        if p == "auto" and len(photons) == len(ests):
+            pilots[k] = auto_pass_model(scene, e, settings, seconds)
+            if on_pilot is not None and pilots[k] is not None:
+                on_pilot(e.spec, pilots[k])
     photons = [(settings.photons if m is None else m["photons"]) if p == "auto" else int(p)
                for m, p in zip(pilots, photons, strict=True)] if len(photons) == len(ests) \
         else photons

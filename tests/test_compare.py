@@ -326,14 +326,16 @@ def test_split_variances_share_the_rays_between_halves(monkeypatch):
 
 def test_compare_records_the_pilots_pass_model(tiny, monkeypatch):
     """An ``auto`` estimator's result keeps what its pilot measured and chose
-    (``pass_model``); an estimator given a count has none."""
+    (``pass_model``, also handed to ``on_pilot``); an estimator given a count has none."""
     import psurf_core.pass_size as ps
 
     monkeypatch.setattr(ps, "pilot", lambda *a: (0.01, 5e-5, 4e-6, 3e-4))
     _, scene = tiny
+    seen = []
     s = compare(scene, ["planes", "points"], 0.2, runs=1, seed=3, photons=["auto", 150],
-                reference_seconds=0.2)
+                reference_seconds=0.2, on_pilot=lambda spec, m: seen.append((spec, m)))
     auto, given = s["results"]
+    assert seen == [("planes", auto["pass_model"])]  # the CLI prints a line from it
     assert auto["pass_model"]["photons"] == auto["photons_per_pass"] == \
         ps.best_photons(0.01, 5e-5, 4e-6, 3e-4, 0.2)
     assert (auto["pass_model"]["c0"], auto["pass_model"]["vp"]) == (0.01, 3e-4)

@@ -260,6 +260,14 @@ def _progress():
     return progress, on_render, close
 
 
+def _on_pilot(spec: str, m: dict) -> None:
+    """One line per estimator sized by its pilot (``--photons auto``): the pass size and the
+    pass model behind it (``compare.json`` keeps the same numbers as ``pass_model``)."""
+    print(f"{spec}: {m['photons']} photons a pass (pilot {m['pilot_seconds']:.1f} s, not "
+          f"timed; c0 {m['c0'] * 1e3:.3g} ms, c1 {m['c1'] * 1e6:.3g} us a photon, "
+          f"Vj {m['vj']:.2g}, Vp {m['vp']:.2g})", flush=True)
+
+
 # --------------------------------------------------------------------------- commands
 
 
@@ -314,7 +322,7 @@ def run_compare(args) -> int:
     progress, on_render, close = _progress()
     kw = dict(runs=args.runs, seed=args.seed, reference=reference, settings=settings,
               reference_seconds=args.reference_time, progress=progress, on_render=on_render,
-              command=command, photons=photons, clock=args.clock)
+              on_pilot=_on_pilot, command=command, photons=photons, clock=args.clock)
     try:
         if args.dask is not None or args.workers is not None:
             from functools import partial
