@@ -259,14 +259,14 @@ def compare(
         photons = [photons] * len(ests)
     # The pilots' models, kept in the results ("auto" entries; None for a given count).
     pilots = [None] * len(ests)
-    for k, (e, p) in enumerate(zip(ests, photons, strict=False)):
-        if p == "auto" and len(photons) == len(ests):
-            pilots[k] = auto_pass_model(scene, e, settings, seconds)
-            if on_pilot is not None and pilots[k] is not None:
-                on_pilot(e.spec, pilots[k])
-    photons = [(settings.photons if m is None else m["photons"]) if p == "auto" else int(p)
-               for m, p in zip(pilots, photons, strict=True)] if len(photons) == len(ests) \
-        else photons
+    if len(photons) == len(ests):  # else the check below says so
+        for k, (e, p) in enumerate(zip(ests, photons, strict=True)):
+            if p == "auto":
+                pilots[k] = auto_pass_model(scene, e, settings, seconds)
+                if on_pilot is not None and pilots[k] is not None:
+                    on_pilot(e.spec, pilots[k])
+        photons = [(settings.photons if m is None else m["photons"]) if p == "auto"
+                   else int(p) for m, p in zip(pilots, photons, strict=True)]
     if len(photons) != len(ests) or min(photons) < 1:
         raise ValueError(f"photons: give one count > 0 or one per estimator ({len(ests)}), "
                          f"got {photons}")
