@@ -213,8 +213,11 @@ def compare(
         Called after every pass of every render (``label`` e.g. ``"beams run 1/2"``).
     on_render : callable(label, RenderResult), optional
         Called after every render (the reference's label is ``"reference"``).
-    on_pilot : callable(spec, pass model), optional
-        Called after each ``"auto"`` estimator's pilot (the result's ``pass_model``).
+    on_pilot : callable(spec, pass model or None), optional
+        Called with None as each ``"auto"`` estimator's pilot starts (its warm-up and pilot
+        can take seconds for a slow estimator, before any progress bar), then with its model
+        once it has chosen (the result's ``pass_model``). Not for the path tracer (no
+        pilot).
     runner : callable, optional
         ``runner(scene, estimator, settings, time_budget=, seed=, on_pass=)`` returning a
         ``RenderResult``; :func:`psurf_core.render.render` by default (pass a partial of
@@ -262,6 +265,8 @@ def compare(
     if len(photons) == len(ests):  # else the check below says so
         for k, (e, p) in enumerate(zip(ests, photons, strict=True)):
             if p == "auto":
+                if on_pilot is not None and not e.reference:
+                    on_pilot(e.spec, None)
                 pilots[k] = auto_pass_model(scene, e, settings, seconds)
                 if on_pilot is not None and pilots[k] is not None:
                     on_pilot(e.spec, pilots[k])

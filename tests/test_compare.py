@@ -192,11 +192,14 @@ def test_cli_with_reference_file(study, tiny, tmp_path):
     _, out = study
     d, _ = tiny
     r = run_app("compare", d / "tiny.toml", "--estimators", "planes,points", "--time", "1",
-                   "--photons", "500,300", "--reference", out / "reference.npz",
+                   "--photons", "auto,300", "--reference", out / "reference.npz",
                    "--out", tmp_path / "cli", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     data = json.loads((tmp_path / "cli" / "compare.json").read_text())
-    assert [x["photons_per_pass"] for x in data["results"]] == [500, 300]
+    n = data["results"][0]["pass_model"]["photons"]
+    assert [x["photons_per_pass"] for x in data["results"]] == [n, 300]
+    # The pilot is announced as it starts and its choice completes the same line.
+    assert f"planes: sizing its passes (a pilot, not timed) ... {n} photons a pass" in r.stdout
     assert data["reference"]["source"].endswith("reference.npz")
     assert data["results"][0]["ratio"] == 1.0
     assert not (tmp_path / "cli" / "reference.npz").exists()  # nothing rendered for it
@@ -335,7 +338,8 @@ def test_compare_records_the_pilots_pass_model(tiny, monkeypatch):
     s = compare(scene, ["planes", "points"], 0.2, runs=1, seed=3, photons=["auto", 150],
                 reference_seconds=0.2, on_pilot=lambda spec, m: seen.append((spec, m)))
     auto, given = s["results"]
-    assert seen == [("planes", auto["pass_model"])]  # the CLI prints a line from it
+    # Said as the pilot starts, then with what it chose (the CLI prints one line from both).
+    assert seen == [("planes", None), ("planes", auto["pass_model"])]
     assert auto["pass_model"]["photons"] == auto["photons_per_pass"] == \
         ps.best_photons(0.01, 5e-5, 4e-6, 3e-4, 0.2)
     assert (auto["pass_model"]["c0"], auto["pass_model"]["vp"]) == (0.01, 3e-4)

@@ -260,10 +260,14 @@ def _progress():
     return progress, on_render, close
 
 
-def _on_pilot(spec: str, m: dict) -> None:
-    """One line per estimator sized by its pilot (``--photons auto``): the pass size and the
-    pass model behind it (``compare.json`` keeps the same numbers as ``pass_model``)."""
-    print(f"{spec}: {m['photons']} photons a pass (pilot {m['pilot_seconds']:.1f} s, not "
+def _on_pilot(spec: str, m: dict | None) -> None:
+    """One line per estimator sized by its pilot (``--photons auto``): said as the pilot
+    starts (``m`` None; a slow estimator's takes seconds), completed with the pass size and
+    the pass model behind it (``compare.json`` keeps the same numbers as ``pass_model``)."""
+    if m is None:
+        print(f"{spec}: sizing its passes (a pilot, not timed) ... ", end="", flush=True)
+        return
+    print(f"{m['photons']} photons a pass (pilot {m['pilot_seconds']:.1f} s, not "
           f"timed; c0 {m['c0'] * 1e3:.3g} ms, c1 {m['c1'] * 1e6:.3g} us a photon, "
           f"Vj {m['vj']:.2g}, Vp {m['vp']:.2g})", flush=True)
 
