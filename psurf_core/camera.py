@@ -120,18 +120,23 @@ def camera_rays(
     jitter: bool = True,
     pixels: np.ndarray | None = None,
     blockers: Blockers | None = None,
+    jitter_xy: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Rays:
     """Camera rays for every pixel (or the given flat ``pixels``), ``spp`` per pixel.
 
     With ``jitter`` each ray goes through a uniformly random point of its pixel (a box
     filter: the pixel value is the area average); without it, through pixel centres
-    (for tests against a one-ray quadrature).
+    (for tests against a one-ray quadrature). ``jitter_xy``: the points, (n_pixels * spp,)
+    each in [0, 1), given (:func:`psurf_core.pixel_jitter.pass_jitter`) instead of drawn
+    from ``rng``.
     """
     cam = scene.camera
     # Jitter is drawn for every pixel even when only some are wanted, so that replaying one
     # pixel of a pass sees exactly the rays the full pass saw.
     all_pix = np.repeat(np.arange(cam.n_pixels), spp)
-    if jitter:
+    if jitter_xy is not None:
+        jx, jy = jitter_xy
+    elif jitter:
         if rng is None:
             raise ValueError("jittered camera rays need a Generator")
         jx, jy = rng.random(all_pix.size), rng.random(all_pix.size)

@@ -134,6 +134,9 @@ def render_identity(scene_file: str, scene, estimator, settings, seed: int) -> d
         "max_scatter": int(scene.max_scatter),
         "memory_budget_mib": int(settings.memory_budget_mib),
     }
+    if settings.pixel_sampler != "independent":
+        # Only when set: checkpoints made before the r2 sampler existed stay resumable.
+        ident["pixel_sampler"] = settings.pixel_sampler
     if estimator.reference:
         # A checkpoint of another path tracer would resume into a mix of two samplers.
         from .reference import SAMPLER

@@ -167,12 +167,18 @@ def auto_pass_model(scene, estimator, settings: RenderSettings, budget: float) -
     """What :func:`auto_photons` measured and chose, for the record (``compare.json``):
     ``{"photons", "c0", "c1", "vj", "vp", "pilot_seconds"}`` (seconds, seconds a photon,
     per-pass pixel variances as in the module docstring, the pilot's wall seconds); None for
-    the path tracer."""
+    the path tracer. With ``settings.pixel_sampler`` ``"r2"`` the choice ignores ``Vj``."""
     if estimator.reference:
         return None
     warm_up(scene, estimator, settings)
     t = time.perf_counter()
     model = pilot(scene, estimator, settings)
-    return {"photons": best_photons(*model, budget),
+    c0, c1, vj, vp = model
+    # The r2 pixel sampler covers each pixel evenly over the passes: its part of the mean's
+    # variance falls much faster than 1 / P (pixel_jitter), so only the fixed cost limits
+    # the pass size (the overhead cap). Vj is still measured (independent split passes) and
+    # kept for the record.
+    return {"photons": best_photons(c0, c1, vj if settings.pixel_sampler == "independent"
+                                    else 0.0, vp, budget),
             **dict(zip(("c0", "c1", "vj", "vp"), model, strict=True)),
             "pilot_seconds": time.perf_counter() - t}

@@ -3,6 +3,8 @@
 Everything random in pass ``i`` comes from ``SeedSequence([seed, i])``: its first child drives
 the camera-ray jitter, its second the photons (in fixed-size batches, each with its own
 grandchild), so a pass is the same wherever and whenever it runs, whatever the memory budget.
+(The ``r2`` pixel sampler, :mod:`.pixel_jitter`, takes the jitter from the pass index and one
+per-seed draw instead: as deterministic.)
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from .geometry import Blockers, blockers_of
 from .interrupt import check, held
 from .kernels.fused import MisSet, fused_pass
 from .mis import mis_weights
+from .pixel_jitter import check_sampler, pass_jitter
 from .scene import Scene
 from .techniques.base import PassContext, Technique
 from .trace import trace
@@ -55,6 +58,10 @@ class RenderSettings:
         ``gamma_i = prod_{k<i} (k + alpha)/(k + 1)``; 1 keeps the radius fixed.
     memory_budget_mib : int
         Bound on the chunked rays x primitives work.
+    pixel_sampler : str
+        Where each pass's rays go inside their pixels (:mod:`psurf_core.pixel_jitter`):
+        ``"independent"`` (a fresh uniform point every pass) or ``"r2"`` (a low-discrepancy
+        sequence over the passes, randomly shifted per pixel and seed).
     """
 
     photons: int = 20_000
@@ -62,6 +69,10 @@ class RenderSettings:
     radius: float | None = None
     radius_shrink: float = 1.0
     memory_budget_mib: int = DEFAULT_MEMORY_BUDGET_MIB
+    pixel_sampler: str = "independent"
+
+    def __post_init__(self):
+        check_sampler(self.pixel_sampler)
 
     @property
     def max_pairs(self) -> int:
@@ -250,7 +261,9 @@ def render_pass(
     cam = scene.camera
     blockers = blockers_of(scene) if blockers is None else blockers
     ray_rng, photon_ss = pass_generators(seed, pass_index)
-    rays = camera_rays(scene, settings.spp, ray_rng, pixels=pixels, blockers=blockers)
+    jit = pass_jitter(settings.pixel_sampler, cam.n_pixels, settings.spp, seed, pass_index,
+                      ray_rng)
+    rays = camera_rays(scene, settings.spp, pixels=pixels, blockers=blockers, jitter_xy=jit)
     if record is not None:
         record.rays = rays
     if estimator.reference:

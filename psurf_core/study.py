@@ -20,10 +20,16 @@ are then averaged over the runs):
 ``mean_variance``
     ``mean(var / passes)``: the estimated variance of the run's final (mean) image, the
     "Var" of an equal-time comparison. ``null`` when a run had fewer than two passes.
+``image_variance``
+    The variance of a run's final image that ``ratio`` compares: ``mean_variance``, or, with
+    the ``r2`` pixel sampler (whose passes are not independent, :mod:`.pixel_jitter`) and two
+    or more runs, ``run_variance`` (below). With ``r2`` and one run it is ``mean_variance``,
+    which then overstates it (a warning says so).
 ``ratio``
-    ``mean_variance / mean_variance`` of the first estimator ("Var: 0.23x"); ``relmse_ratio``
-    likewise for ``relmse``. ``ratio_time_normalized`` multiplies each ``mean_variance`` by its
-    measured run time first (it corrects for the last pass's overshoot).
+    ``image_variance / image_variance`` of the first estimator ("Var: 0.23x");
+    ``relmse_ratio`` likewise for ``relmse``. ``ratio_time_normalized`` multiplies each
+    ``image_variance`` by its measured run time first (it corrects for the last pass's
+    overshoot).
 ``relmse``
     ``mean((I - R)^2 / (R^2 + EPS * mean(R)^2))`` with ``I`` the run's final image, ``R`` the
     reference, ``EPS = RELMSE_EPS = 1e-2`` and ``mean(R)`` the mean of the reference over
@@ -41,7 +47,9 @@ are then averaged over the runs):
 ``run_variance``
     With two or more runs, ``mean`` of the per-pixel sample variance of the runs' final images
     (a check on ``mean_variance`` that does not trust the per-pass variance of a heavy-tailed
-    estimator); ``null`` with one run.
+    estimator, and the variance of the image where the passes are not independent: the
+    ``r2`` pixel sampler, :mod:`psurf_core.pixel_jitter`); ``null`` with one run.
+    ``run_variance_ratio`` ("Var across runs") compares it with the first estimator's.
 ``curve``
     Per run, ``[seconds, passes, relmse]`` after passes 1, 2, 3, ... (thinned to at most
     :data:`CURVE_POINTS` points, log-spaced in passes), from ``render``'s ``on_pass``.
@@ -317,6 +325,13 @@ def compare(
     # Heavy tails make the reference's own error bars (and so the floor) too small.
     ref_reliability = reference.reliability()
     warnings = [ref_reliability["message"]] if ref_reliability["warn"] else []
+    if settings.pixel_sampler != "independent":
+        warnings.append(
+            f"pixel sampler {settings.pixel_sampler!r}: a run's passes share one low-"
+            "discrepancy pattern of pixel points, so 'mean variance' (per-pass variance / "
+            "passes) overstates the variance of its image; Var is therefore the variance "
+            "across runs (independent seeds) when there are two or more, as is 'Var across "
+            "runs'; relMSE is unaffected")
 
     # ---- the estimators
     results, arrays = [], {"reference": ref, "reference_var": reference.var,
@@ -386,18 +401,23 @@ def compare(
             "relmse_from_variance": _mean_or_none([x["relmse_from_variance"]
                                                    for x in per_run]),
             "run_variance": run_var,
+            # The runs' spread where the passes of a run are not independent (the r2 pixel
+            # sampler: per-pass variance / passes would count its pixel-area noise in full).
+            "image_variance": (run_var if settings.pixel_sampler != "independent"
+                               and run_var is not None else
+                               _mean_or_none([x["mean_variance"] for x in per_run])),
             "notes": notes,
             "runs": [{k2: _nan_to_none(v) for k2, v in x.items()} for x in per_run],
         })
 
     first = results[0]
     for row in results:
-        row["ratio"] = _ratio(row["mean_variance"], first["mean_variance"])
+        row["ratio"] = _ratio(row["image_variance"], first["image_variance"])
         row["relmse_ratio"] = _ratio(row["relmse"], first["relmse"])
-        tn = (None if row["mean_variance"] is None else
-              row["mean_variance"] * float(np.mean(row["seconds_per_run"])))
-        tn0 = (None if first["mean_variance"] is None else
-               first["mean_variance"] * float(np.mean(first["seconds_per_run"])))
+        tn = (None if row["image_variance"] is None else
+              row["image_variance"] * float(np.mean(row["seconds_per_run"])))
+        tn0 = (None if first["image_variance"] is None else
+               first["image_variance"] * float(np.mean(first["seconds_per_run"])))
         row["ratio_time_normalized"] = _ratio(tn, tn0)
         row["run_variance_ratio"] = _ratio(row["run_variance"], first["run_variance"])
         row["per_photon_variance"] = (None if row["per_pass_variance"] is None
@@ -427,6 +447,7 @@ def compare(
         "max_scatter": scene.max_scatter,
         "photons_per_pass": [r["photons_per_pass"] for r in results],
         "spp": settings.spp,
+        "pixel_sampler": settings.pixel_sampler,
         "radius": settings.radius,
         "radius_shrink": settings.radius_shrink,
         "relmse_eps": RELMSE_EPS,

@@ -73,15 +73,16 @@ def _runs(ratios) -> str:
 def format_table(study: dict) -> str:
     """The Markdown table of a study (one row per estimator; more fields in the JSON)."""
     lines = ["| estimator | photons/pass | passes/run | s/pass | mean variance | Var | "
-             "Var, run by run | Var, equal photons | relVar | relVar ratio | relMSE | "
-             "relMSE ratio |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "Var, run by run | Var across runs | Var, equal photons | relVar | relVar ratio | "
+             "relMSE | relMSE ratio |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in study["results"]:
         ph = "-" if r["photons_per_pass"] is None else str(r["photons_per_pass"])
         lines.append(
             f"| `{r['estimator']}` | {ph} | {r['passes']:.4g} | {r['seconds_per_pass']:.3g} | "
             f"{_g(r['mean_variance'])} | {_x(r['ratio'])} | {_runs(r.get('run_ratios'))} | "
-            f"{_x(r.get('ratio_equal_photons'))} | {_g(r['relmse_from_variance'])} | "
+            f"{_x(r.get('run_variance_ratio'))} | {_x(r.get('ratio_equal_photons'))} | "
+            f"{_g(r['relmse_from_variance'])} | "
             f"{_x(r.get('relmse_from_variance_ratio'))} | {_g(r['relmse'])} | "
             f"{_x(r['relmse_ratio'])} |")
     return "\n".join(lines)
@@ -102,7 +103,8 @@ def write_compare_md(path: str, study: dict) -> None:
         f"# Equal-time comparison: `{study['scene']}`",
         "",
         f"- scatter counts K in [{study['min_scatter']}, {_hi(study['max_scatter'])}], "
-        f"{w}x{h} pixels, spp {study['spp']}, photons per pass in the table",
+        f"{w}x{h} pixels, spp {study['spp']}, pixel sampler "
+        f"{study.get('pixel_sampler', 'independent')}, photons per pass in the table",
         f"- {study['seconds']:g} s of {study['clock']} time per run and estimator, "
         f"{study['runs']} run(s), seeds "
         f"{study['seed']}..{study['seed'] + study['runs'] - 1}",
@@ -124,13 +126,17 @@ def write_compare_md(path: str, study: dict) -> None:
     if notes:
         lines += ["Notes:", ""] + [f"- `{e}`: {n}" for e, n in notes] + [""]
     lines += [
-        "Var = mean variance / the first estimator's; mean variance = pixel mean of "
-        "(per-pass variance / passes), the variance of the final image. 'Var, equal photons' "
+        "Var = the variance of the final image / the first estimator's: mean variance (the "
+        "pixel mean of per-pass variance / passes) with independent passes; with the r2 pixel "
+        "sampler and two or more runs, the variance across the runs' images (r2's passes are "
+        "not independent, so per-pass variance overstates it). 'Var, equal photons' "
         "compares per-pass variance x photons per pass instead (no time involved). relMSE = "
         f"mean over pixels and channels of (I - R)^2 / (R^2 + {study['relmse_eps']:g} "
         "mean(R)^2) against the reference R, averaged over runs; 'Var, run by run' is run r's "
         "Var against the first estimator's run r (a spread much wider than the runs' own "
         "noise means a heavy-tailed estimator: one rare spike moves Var, not the median run); "
+        "'Var across runs' compares the variance of the runs' final images (independent "
+        "seeds; n/a with one run), which does not trust per-pass variances; "
         "relVar is relMSE's mean with "
         "the estimator's variance of the final image in the numerator: the part of relMSE its "
         "noise explains (the rest is bias and the reference's own noise). Definitions: "

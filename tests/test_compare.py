@@ -389,3 +389,23 @@ def test_auto_photons_pilots_the_estimator(monkeypatch):
     assert len(seen) == 1
     ref = parse_estimator("reference", scene)
     assert ps.auto_photons(scene, ref, RenderSettings(photons=7), 48.0) == 7
+
+
+def test_r2_sampler_compares_the_runs_images(tiny):
+    """With the r2 pixel sampler a run's passes are not independent: Var is the variance
+    across the runs' images (``image_variance`` = ``run_variance``), and a warning says why;
+    with independent passes it stays the per-pass ``mean_variance``."""
+    _, scene = tiny
+    kw = dict(runs=2, seed=5, photons=[300, 300], reference_seconds=0.3)
+    r2 = compare(scene, ["planes", "points"], 0.3,
+                 settings=RenderSettings(photons=300, pixel_sampler="r2"), **kw)
+    assert r2["pixel_sampler"] == "r2"
+    assert any("pixel sampler 'r2'" in w for w in r2["warnings"])
+    a, b = r2["results"]
+    assert a["image_variance"] == a["run_variance"] != a["mean_variance"]
+    assert b["ratio"] == pytest.approx(b["run_variance"] / a["run_variance"])
+    ind = compare(scene, ["planes", "points"], 0.3, settings=RenderSettings(photons=300), **kw)
+    a, b = ind["results"]
+    assert a["image_variance"] == a["mean_variance"]
+    assert b["ratio"] == pytest.approx(b["mean_variance"] / a["mean_variance"])
+    assert not any("pixel sampler" in w for w in ind["warnings"])

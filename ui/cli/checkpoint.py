@@ -27,7 +27,7 @@ IDENTITY_FLAGS = {
     "estimator": "--estimator", "seed": "--seed", "photons": "--photons", "spp": "--spp",
     "min_scatter": "--min-scatter", "max_scatter": "--max-scatter",
     "memory_budget_mib": "--memory-budget", "radius": "--radius",
-    "radius_shrink": "--radius-shrink",
+    "radius_shrink": "--radius-shrink", "pixel_sampler": "--pixel-sampler",
 }
 
 

@@ -143,6 +143,20 @@ def add_resolution_flag(parser) -> None:
                         help="render at W x H pixels instead of the scene's [camera] resolution")
 
 
+def add_pixel_sampler_flag(parser, default: str = "independent") -> None:
+    """``--pixel-sampler`` on ``parser`` (``args.pixel_sampler``), worded alike in every
+    command that renders passes (:mod:`psurf_core.pixel_jitter`)."""
+    from psurf_core.pixel_jitter import SAMPLERS
+
+    parser.add_argument(
+        "--pixel-sampler", choices=SAMPLERS, default=default,
+        help="where each pass's camera rays go inside their pixels: 'independent' (a fresh "
+             "uniform point every pass) or 'r2' (a low-discrepancy sequence over the passes, "
+             "shifted at random per pixel and seed: the pixel-area noise falls much faster; "
+             "passes are no longer independent, so per-pass variance overstates the "
+             f"image's); default {default}")
+
+
 # --------------------------------------------------------------------------- checks
 
 

@@ -22,6 +22,7 @@ import textwrap
 from .common import (
     PROG,
     CliError,
+    add_pixel_sampler_flag,
     explain_estimator_error,
     fail,
     load_reference,
@@ -91,14 +92,16 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
               renders.png    reference and final images at one exposure
               error_vs_time.png   relMSE after every pass vs seconds
               reference.npz  the reference, when it was rendered here (reuse: --reference)
-            mean_variance: pixel mean of (per-pass variance / passes); ratio: relative to the
-            first estimator ("Var: 0.23x"). relMSE = mean of (I - R)^2 / (R^2 + 0.01 mean(R)^2)
+            Var: the variance of each final image relative to the first estimator's ("Var:
+            0.23x"): across the runs (--runs 2 or more) with the default --pixel-sampler r2,
+            whose passes share one low-discrepancy pattern of pixel points; else the pixel mean
+            of (per-pass variance / passes). relMSE = mean of (I - R)^2 / (R^2 + 0.01 mean(R)^2)
             against --reference FILE.npz, or else a path-tracer reference rendered first for
             --reference-time seconds (default 2 x --time x number of estimators).
             The image holds only the scene's [render] scatter range (--min-scatter/--max-scatter
             override it; single scattering: 1 and 1).
-            Defaults: --photons auto --spp {DEFAULT_SPP} --runs {DEFAULT_RUNS} \
---seed {DEFAULT_SEED}."""),
+            Defaults: --photons auto --spp {DEFAULT_SPP} --pixel-sampler r2 \
+--runs {DEFAULT_RUNS} --seed {DEFAULT_SEED}."""),
     )
     p.add_argument("scene", metavar="SCENE.toml", help="scene file (see SCENES.md)")
     p.add_argument("--estimators", required=True, type=_specs, metavar="A,B,...",
@@ -128,6 +131,7 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                    help="render at W x H pixels instead of the scene's resolution")
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
+    add_pixel_sampler_flag(p, default="r2")
     p.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
                    help="override the scene's [render] min_scatter (>= 1)")
     p.add_argument("--max-scatter", type=scatter_int, default=None, metavar="B",
@@ -178,7 +182,7 @@ def _settings(args):
     first = args.photons[0]
     kw = {"photons": DEFAULT_PHOTONS if first == "auto" else first, "spp": args.spp,
           "radius": args.radius,
-          "radius_shrink": args.radius_shrink}
+          "radius_shrink": args.radius_shrink, "pixel_sampler": args.pixel_sampler}
     if args.memory_budget is not None:
         kw["memory_budget_mib"] = args.memory_budget
     return RenderSettings(**kw)
