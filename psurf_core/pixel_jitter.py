@@ -34,9 +34,9 @@ import numpy as np
 #: The samplers :func:`pass_jitter` knows.
 SAMPLERS = ("independent", "r2")
 
-#: The second entry of the SeedSequence of a seed's per-pixel rotation (no pass index is
-#: negative, so no pass's own sequence ``[seed, i]`` can be it).
-ROTATION_KEY = -1 & 0xFFFFFFFF
+#: The second entry of the SeedSequence of a seed's per-pixel rotation: 2^32 - 1, a pass
+#: index no render reaches, so no pass's own sequence ``[seed, i]`` is the rotation's.
+ROTATION_KEY = 0xFFFFFFFF
 
 #: R2's step: ``(1 / g, 1 / g^2)`` with ``g`` the plastic number (``g^3 = g + 1``).
 _G = 1.32471795724474602596

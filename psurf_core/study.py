@@ -24,7 +24,7 @@ are then averaged over the runs):
     The variance of a run's final image that ``ratio`` compares: ``mean_variance``, or, with
     the ``r2`` pixel sampler (whose passes are not independent, :mod:`.pixel_jitter`) and two
     or more runs, ``run_variance`` (below). With ``r2`` and one run it is ``mean_variance``,
-    which then overstates it (a warning says so).
+    which then overstates it (a warning says so: only then).
 ``ratio``
     ``image_variance / image_variance`` of the first estimator ("Var: 0.23x");
     ``relmse_ratio`` likewise for ``relmse``. ``ratio_time_normalized`` multiplies each
@@ -89,6 +89,7 @@ from .metrics import RELMSE_EPS, relmse, relmse_map, var_relmse
 from .pass_size import auto_pass_model
 from .render import RenderSettings, render
 from .scene import Scene
+from .study_ratios import add_ratios
 from .study_reference import Reference, default_reference_seconds, load_reference
 from .study_report import (  # the writers; re-exported so ``study`` stays the one entry point
     OUTPUT_FILES,
@@ -173,12 +174,6 @@ def _mean_or_none(values: list) -> float | None:
     if len(vals) != len(values) or not vals:
         return None
     return float(np.mean(vals))
-
-
-def _ratio(a, b) -> float | None:
-    if a is None or b is None or not b > 0:
-        return None
-    return float(a / b)
 
 
 def compare(
@@ -325,13 +320,12 @@ def compare(
     # Heavy tails make the reference's own error bars (and so the floor) too small.
     ref_reliability = reference.reliability()
     warnings = [ref_reliability["message"]] if ref_reliability["warn"] else []
-    if settings.pixel_sampler != "independent":
+    if settings.pixel_sampler != "independent" and runs < 2:
         warnings.append(
-            f"pixel sampler {settings.pixel_sampler!r}: a run's passes share one low-"
-            "discrepancy pattern of pixel points, so 'mean variance' (per-pass variance / "
-            "passes) overstates the variance of its image; Var is therefore the variance "
-            "across runs (independent seeds) when there are two or more, as is 'Var across "
-            "runs'; relMSE is unaffected")
+            f"pixel sampler {settings.pixel_sampler!r} with one run: a run's passes share one "
+            "low-discrepancy pattern of pixel points, so Var (per-pass variance / passes) "
+            "overstates the variance of its image; --runs 2 or more measures it across the "
+            "runs' images (relMSE is unaffected)")
 
     # ---- the estimators
     results, arrays = [], {"reference": ref, "reference_var": reference.var,
@@ -410,30 +404,7 @@ def compare(
             "runs": [{k2: _nan_to_none(v) for k2, v in x.items()} for x in per_run],
         })
 
-    first = results[0]
-    for row in results:
-        row["ratio"] = _ratio(row["image_variance"], first["image_variance"])
-        row["relmse_ratio"] = _ratio(row["relmse"], first["relmse"])
-        tn = (None if row["image_variance"] is None else
-              row["image_variance"] * float(np.mean(row["seconds_per_run"])))
-        tn0 = (None if first["image_variance"] is None else
-               first["image_variance"] * float(np.mean(first["seconds_per_run"])))
-        row["ratio_time_normalized"] = _ratio(tn, tn0)
-        row["run_variance_ratio"] = _ratio(row["run_variance"], first["run_variance"])
-        row["per_photon_variance"] = (None if row["per_pass_variance"] is None
-                                      or row["photons_per_pass"] is None
-                                      else row["per_pass_variance"] * row["photons_per_pass"])
-    for row in results:
-        row["ratio_equal_photons"] = _ratio(row["per_photon_variance"],
-                                            first["per_photon_variance"])
-        # Run r against the first estimator's run r: one run's spike (photon planes' second
-        # moment diverges where they graze, docs/study.md) moves the mean, not the median.
-        row["run_ratios"] = [_ratio(a["mean_variance"], b["mean_variance"])
-                             for a, b in zip(row["runs"], first["runs"], strict=True)]
-        ok = [r for r in row["run_ratios"] if r is not None]
-        row["ratio_median_run"] = float(np.median(ok)) if ok else None
-        row["relmse_from_variance_ratio"] = _ratio(row["relmse_from_variance"],
-                                                   first["relmse_from_variance"])
+    add_ratios(results)
 
     cam = scene.camera
     return {

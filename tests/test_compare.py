@@ -393,14 +393,19 @@ def test_auto_photons_pilots_the_estimator(monkeypatch):
 
 def test_r2_sampler_compares_the_runs_images(tiny):
     """With the r2 pixel sampler a run's passes are not independent: Var is the variance
-    across the runs' images (``image_variance`` = ``run_variance``), and a warning says why;
-    with independent passes it stays the per-pass ``mean_variance``."""
+    across the runs' images (``image_variance`` = ``run_variance``); with one run it can only
+    be the per-pass ``mean_variance``, which overstates it, and a warning says so. With
+    independent passes it stays the per-pass ``mean_variance``."""
     _, scene = tiny
     kw = dict(runs=2, seed=5, photons=[300, 300], reference_seconds=0.3)
-    r2 = compare(scene, ["planes", "points"], 0.3,
-                 settings=RenderSettings(photons=300, pixel_sampler="r2"), **kw)
+    r2_settings = RenderSettings(photons=300, pixel_sampler="r2")
+    r2 = compare(scene, ["planes", "points"], 0.3, settings=r2_settings, **kw)
     assert r2["pixel_sampler"] == "r2"
-    assert any("pixel sampler 'r2'" in w for w in r2["warnings"])
+    assert not any("pixel sampler" in w for w in r2["warnings"])
+    one = compare(scene, ["planes"], 0.2, settings=r2_settings,
+                  **{**kw, "runs": 1, "photons": [300]})
+    assert any("pixel sampler 'r2' with one run" in w for w in one["warnings"])
+    assert one["results"][0]["image_variance"] == one["results"][0]["mean_variance"]
     a, b = r2["results"]
     assert a["image_variance"] == a["run_variance"] != a["mean_variance"]
     assert b["ratio"] == pytest.approx(b["run_variance"] / a["run_variance"])

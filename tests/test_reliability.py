@@ -276,6 +276,8 @@ def test_compare_cli_prints_the_warning(tiny, tmp_path):
     r = subprocess.run([sys.executable, str(ROOT / "app.py"), *map(str, argv)], cwd=tmp_path,
                        env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
-    warn = [ln for ln in r.stderr.splitlines() if ln.startswith("psurf: warning: ")]
+    # (one run with compare's default r2 sampler adds its own warning: see test_compare)
+    warn = [ln for ln in r.stderr.splitlines()
+            if ln.startswith("psurf: warning: ") and "pixel sampler" not in ln]
     assert len(warn) == 1 and "unreliable error estimates" in warn[0], r.stderr
     assert "render it longer" in warn[0].lower()
