@@ -101,3 +101,8 @@ def test_checkpoint_identity_names_the_sampler(tmp_path):
     r2 = render_identity(str(path), scene, est, RenderSettings(pixel_sampler="r2"), 0)
     assert "pixel_sampler" not in plain and r2["pixel_sampler"] == "r2"
     assert [d[0] for d in identity_differences(r2, plain)] == ["pixel_sampler"]
+    from ui.cli.checkpoint import describe_difference
+
+    said = describe_difference(*identity_differences(r2, plain)[0], str(path))
+    assert said == ("the checkpoint was made with --pixel-sampler 'r2', the command line has "
+                    "'independent'")

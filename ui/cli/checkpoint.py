@@ -49,6 +49,8 @@ def describe_difference(key: str, saved, current, scene_file: str) -> str:
     def show(v):
         return "(not set)" if v is None else repr(v) if isinstance(v, str) else str(v)
 
+    if key == "pixel_sampler":  # the identity leaves the default out (older checkpoints)
+        saved, current = saved or "independent", current or "independent"
     return (f"the checkpoint was made with {flag} {show(saved)}, "
             f"the command line has {show(current)}")
 
