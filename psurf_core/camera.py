@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import Blockers, blockers_of, ray_box
+from .pixel_jitter import independent_jitter
 from .scene import Camera, Scene
 
 
@@ -139,7 +140,7 @@ def camera_rays(
     elif jitter:
         if rng is None:
             raise ValueError("jittered camera rays need a Generator")
-        jx, jy = rng.random(all_pix.size), rng.random(all_pix.size)
+        jx, jy = independent_jitter(all_pix.size, rng)
     else:
         jx = jy = np.full(all_pix.size, 0.5)
     if pixels is None:

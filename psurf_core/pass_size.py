@@ -172,13 +172,12 @@ def auto_pass_model(scene, estimator, settings: RenderSettings, budget: float) -
         return None
     warm_up(scene, estimator, settings)
     t = time.perf_counter()
-    model = pilot(scene, estimator, settings)
-    c0, c1, vj, vp = model
+    c0, c1, vj, vp = pilot(scene, estimator, settings)
     # The r2 pixel sampler covers each pixel evenly over the passes: its part of the mean's
     # variance falls much faster than 1 / P (pixel_jitter), so only the fixed cost limits
     # the pass size (the overhead cap). Vj is still measured (independent split passes) and
     # kept for the record.
     return {"photons": best_photons(c0, c1, vj if settings.pixel_sampler == "independent"
                                     else 0.0, vp, budget),
-            **dict(zip(("c0", "c1", "vj", "vp"), model, strict=True)),
+            "c0": c0, "c1": c1, "vj": vj, "vp": vp,
             "pilot_seconds": time.perf_counter() - t}

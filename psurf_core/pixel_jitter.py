@@ -64,6 +64,12 @@ def r2_points(index: np.ndarray, rot: np.ndarray) -> np.ndarray:
     return (np.outer(np.asarray(index, dtype=float) + 1.0, R2_STEP) + rot) % 1.0
 
 
+def independent_jitter(n: int, rng: np.random.Generator):
+    """``(jx, jy)``, each (n,): fresh uniform points from ``rng`` (x drawn first, then y: the
+    order every image so far was rendered with)."""
+    return rng.random(n), rng.random(n)
+
+
 def pass_jitter(sampler: str, n_pixels: int, spp: int, seed: int, pass_index: int,
                 rng: np.random.Generator):
     """``(jx, jy)``, each (n_pixels * spp,) in [0, 1): pass ``pass_index``'s point in every
@@ -75,7 +81,7 @@ def pass_jitter(sampler: str, n_pixels: int, spp: int, seed: int, pass_index: in
     """
     n = n_pixels * spp
     if sampler == "independent":
-        return rng.random(n), rng.random(n)
+        return independent_jitter(n, rng)
     check_sampler(sampler)
     idx = pass_index * spp + np.tile(np.arange(spp), n_pixels)
     pts = r2_points(idx, rotation(int(seed), n))

@@ -188,7 +188,7 @@ def compare(
     reference_seconds: float | None = None,
     progress: Callable[[str, int, float, float], None] | None = None,
     on_render: Callable[[str, object], None] | None = None,
-    on_pilot: Callable[[str, dict], None] | None = None,
+    on_pilot: Callable[[str, dict | None], None] | None = None,
     runner: Callable | None = None,
     command: str | None = None,
     photons: int | list | None = None,
@@ -368,6 +368,7 @@ def compare(
             arrays["estimators"][k]["curves"].append(curve)
         run_var = (float(np.mean(np.var(np.stack(finals), axis=0, ddof=1)))
                    if runs >= 2 else None)
+        mean_var = _mean_or_none([x["mean_variance"] for x in per_run])
         notes = list(est.notes)
         if not est.reference and _min_k(est) > scene.min_scatter:
             notes.append(f"covers K >= {_min_k(est)} only; the image has K >= "
@@ -390,7 +391,7 @@ def compare(
             "cpu_seconds_per_run": [run["cpu_seconds"] for run in per_run],
             "seconds_per_pass": float(np.sum(secs) / max(1, np.sum(passes))),
             "per_pass_variance": _mean_or_none([x["per_pass_variance"] for x in per_run]),
-            "mean_variance": _mean_or_none([x["mean_variance"] for x in per_run]),
+            "mean_variance": mean_var,
             "relmse": _mean_or_none([x["relmse"] for x in per_run]),
             "relmse_from_variance": _mean_or_none([x["relmse_from_variance"]
                                                    for x in per_run]),
@@ -398,8 +399,7 @@ def compare(
             # The runs' spread where the passes of a run are not independent (the r2 pixel
             # sampler: per-pass variance / passes would count its pixel-area noise in full).
             "image_variance": (run_var if settings.pixel_sampler != "independent"
-                               and run_var is not None else
-                               _mean_or_none([x["mean_variance"] for x in per_run])),
+                               and run_var is not None else mean_var),
             "notes": notes,
             "runs": [{k2: _nan_to_none(v) for k2, v in x.items()} for x in per_run],
         })
