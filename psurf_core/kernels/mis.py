@@ -1,6 +1,6 @@
 """The MIS weight in compiled code, composed from the members' own ``density`` twins.
 
-:func:`weight_of` turns an MIS set into one inline function ``w(row, shares)``: the
+:func:`weight_of` turns an MIS set into inline functions (:class:`Weight`): the
 balance (``b = 1``) or power (``b = 2``) heuristic with sample counts,
 ``(n_me Q_me)^b / sum_j (n_j Q_j)^b / n_me``, over the members that can produce the hit's
 path (its scatter count ``K`` and light kind, as ``Technique.can_produce``), each ``Q_j`` the
@@ -29,6 +29,9 @@ has no compiled density make :func:`weight_of` return None (the numpy weights ru
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import NamedTuple
+
 import numpy as np
 
 from ..pdfs import KIND_CODE
@@ -51,29 +54,37 @@ def member_params(full_group, shares) -> np.ndarray:
 
 
 def _member(density, min_k, max_k, mask, power, ratio=False):
-    """``(n Q)^b`` of a member on ``row`` for its share ``n`` and shortness ``short`` (0
-    where it is off or cannot produce the path; ``nan_to_num(|Q|)`` as
-    :func:`psurf_core.mis.member_densities`; with ``ratio``, ``density`` is the member's
-    ``short_ratio(row)`` and ``Q`` that). A :func:`~.jit.scalar` function, built once
-    per member kind (:func:`member_key`) and heuristic and shared by every set and walker
-    it appears in: numba types it once, where an inlined copy was typed again in each of
-    a set's walkers; LLVM inlines it all the same."""
+    """``(share, q)`` of a member: ``share(row, n)`` is its share ``n`` where it can produce
+    the path of ``row`` (its scatter count ``K`` and light kind), else 0, and ``q(row, n,
+    short)`` is ``(n Q)^b`` on ``row`` for that share and its shortness (``nan_to_num(|Q|)``
+    as :func:`psurf_core.mis.member_densities`; with ``ratio``, ``density`` is the member's
+    ``short_ratio(row)`` and ``Q`` that). ``K`` and the light kind are the photon's, the same
+    for every hit of a primitive: the walker calls ``share`` once a primitive and ``q`` at
+    every hit (with the checks at every hit, ``fast-multi``'s walk took 1.1x as long:
+    docs/study.md, "The MIS weight's checks once a primitive"). ``Q`` is made finite before
+    ``n`` multiplies it, so a member that is off or cannot produce the path (``n = 0``) adds
+    exactly 0 even where its density of this path is NaN. :func:`~.jit.scalar` functions,
+    built once per member kind (:func:`member_key`) and heuristic and shared by every set and
+    walker they appear in: numba types them once, where inlined copies were typed again in
+    each of a set's walkers; LLVM inlines them all the same."""
     key = (density, min_k, max_k, mask, power, ratio)
     if key not in _TERMS:
 
         @scalar
-        def q(row, n, short):
-            if n == 0.0:
-                return 0.0
+        def share(row, n):
             if row.K < min_k or (max_k >= 0 and row.K > max_k) or (mask >> row.kind) & 1 == 0:
                 return 0.0
+            return n
+
+        @scalar
+        def q(row, n, short):
             v = abs(density(row) if ratio else density(row, short))
             if not v < np.inf:  # NaN and inf count as 0
                 v = 0.0
             v = n * v
             return v * v if power else v
 
-        _TERMS[key] = q
+        _TERMS[key] = (share, q)
     return _TERMS[key]
 
 
@@ -81,14 +92,40 @@ def _member(density, min_k, max_k, mask, power, ratio=False):
 _TERMS: dict = {}
 
 
-def _term(q, j):
-    """Member ``j``'s term ``q`` with its share and shortness read from ``params``."""
+def _term(member, j):
+    """Member ``j``'s ``(share, q)`` (:func:`_member`) with its share and shortness read
+    from ``params`` (the share once a primitive: ``shares[j]``)."""
+    share, q = member
 
     @inline
-    def t(row, params):
-        return q(row, params[j, 0], params[j, 1] != 0.0)
+    def s(row, params):
+        return share(row, params[j, 0])
 
-    return t
+    @inline
+    def t(row, params, shares):
+        return q(row, shares[j], params[j, 1] != 0.0)
+
+    return s, t
+
+
+def _shares(gates):
+    """``(row, params) -> (n_0, ..., n_{J-1})``: every member's share on the path of
+    ``row`` (0 where it cannot produce it)."""
+    head = gates[0]
+    if len(gates) == 1:
+
+        @inline
+        def one(row, params):
+            return (head(row, params),)
+
+        return one
+    rest = _shares(gates[1:])
+
+    @inline
+    def all_(row, params):
+        return (head(row, params),) + rest(row, params)
+
+    return all_
 
 
 def _sum(terms):
@@ -97,17 +134,26 @@ def _sum(terms):
     head, rest = terms[0], _sum(terms[1:])
 
     @inline
-    def total(row, params):
-        return head(row, params) + rest(row, params)
+    def total(row, params, shares):
+        return head(row, params, shares) + rest(row, params, shares)
 
     return total
 
 
+class Weight(NamedTuple):
+    """A member's composed MIS weight, in two inline functions: ``shares(row, params)`` once
+    a primitive (on the photon's path row: every member's share where it can produce the
+    path, else 0) and ``w(row, params, shares)`` at every hit (the factor of the hit's
+    per-photon value, already divided by ``n_me``)."""
+
+    shares: Callable
+    w: Callable
+
+
 def weight_of(group, me: int, weighting: str | None):
-    """``(w, key)``: the inline weight ``w(row, shares)`` of member ``me`` of ``group`` (a
-    tuple of techniques) and the key naming it, or ``(None, None)`` when a member has no
-    compiled density. ``w`` is the factor of the hit's per-photon value (already divided by
-    ``n_me``)."""
+    """``(weight, key)``: the :class:`Weight` of member ``me`` of ``group`` (a tuple of
+    techniques) and the key naming it, or ``(None, None)`` when a member has no compiled
+    density."""
     fams = [getattr(m, "compiled", None) for m in group]
     if any(f is None or f.density is None for f in fams):
         return None, None
@@ -130,13 +176,15 @@ _WEIGHTS: dict = {}
 
 
 def _compose(fams, keys, me, power, ratio):
-    terms = [_term(_member(f.short_ratio if ratio else f.density, *keys[j][3:], power, ratio),
-                   j) for j, f in enumerate(fams)]
+    members = [_term(_member(f.short_ratio if ratio else f.density, *keys[j][3:], power, ratio),
+                     j) for j, f in enumerate(fams)]
+    shares = _shares([s for s, _ in members])
+    terms = [t for _, t in members]
     total, mine = _sum(terms), terms[me]
 
     @inline
-    def w(row, params):
-        den = total(row, params)
-        return mine(row, params) / den / params[me, 0] if den > 0.0 else 0.0
+    def w(row, params, shares):
+        den = total(row, params, shares)
+        return mine(row, params, shares) / (den * params[me, 0]) if den > 0.0 else 0.0
 
-    return w
+    return Weight(shares, w)

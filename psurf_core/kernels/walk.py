@@ -39,14 +39,19 @@ _WALKERS: dict = {}
 
 
 @inline
-def _unweighted(row, params):
+def _no_shares(row, params):
+    return 0.0
+
+
+@inline
+def _unweighted(row, params, shares):
     return 1.0
 
 
 def walker(fam, weight=None, key=None):
     """The compiled walker of family ``fam`` (a technique's ``compiled`` declaration,
-    :class:`~psurf_core.techniques.base.Compiled`) with the MIS weight ``weight`` (an inline
-    function ``(row, params) -> w`` from :func:`.mis.weight_of`; None: no MIS). ``key``
+    :class:`~psurf_core.techniques.base.Compiled`) with the MIS weight ``weight`` (a
+    :class:`.mis.Weight` from :func:`.mis.weight_of`; None: no MIS). ``key``
     names ``weight`` (equal keys: the same function), so each walker is built once per
     process."""
     k = (id(fam), key)
@@ -62,7 +67,7 @@ def _build(fam, weight):
     roots, accept, visibility = fam.roots, fam.accept, fam.visibility
     contribution, reconstruct = fam.contribution, fam.reconstruct
     mis = weight is not None
-    w_of = weight if mis else _unweighted
+    shares_of, w_of = weight if mis else (_no_shares, _unweighted)
 
     @kernel(nogil=True)
     def walk(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, geom, short, medium,
@@ -85,6 +90,9 @@ def _build(fam, weight):
             if mis:
                 base = photon_row(px, pw, pt, lights, photon[p], kk[p], medium.sigma_t,
                                   medium.g)
+                # Which members can produce this photon's path, and their shares: the
+                # same for all of the primitive's hits.
+                shares = shares_of(base, params)
             j_end = i + 1
             while j_end < i1 and s_prim[j_end] == p:
                 j_end += 1
@@ -112,7 +120,7 @@ def _build(fam, weight):
                         # only where the hit itself is kept (emit).
                         if mis and (emit or scal != 0.0):
                             row = at_hit(base, ray.o, ray.psi, s)
-                            w = w_of(reconstruct(row, G, hit), params)
+                            w = w_of(reconstruct(row, G, hit), params, shares)
                         if emit:
                             if n >= lim:  # cannot happen: lim is the candidates x roots bound
                                 raise RuntimeError("walker: output capacity exceeded")
