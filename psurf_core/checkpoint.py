@@ -137,6 +137,8 @@ def render_identity(scene_file: str, scene, estimator, settings, seed: int) -> d
     if settings.pixel_sampler != "independent":
         # Only when set: checkpoints made before the r2 sampler existed stay resumable.
         ident["pixel_sampler"] = settings.pixel_sampler
+    if settings.photon_sampler != "independent":
+        ident["photon_sampler"] = settings.photon_sampler
     if estimator.reference:
         # A checkpoint of another path tracer would resume into a mix of two samplers.
         from .reference import SAMPLER

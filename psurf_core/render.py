@@ -24,10 +24,11 @@ from .geometry import Blockers, blockers_of
 from .interrupt import check, held
 from .kernels.fused import MisSet, fused_pass
 from .mis import mis_weights
+from .photon_sampler import batch_draws, check_photon_sampler
 from .pixel_jitter import check_sampler, pass_jitter
 from .scene import Scene
 from .techniques.base import PassContext, Technique
-from .trace import trace
+from .trace import trace, trace_depth
 
 #: Photons traced together; fixed (not derived from the memory budget) so images do not
 #: depend on the budget.
@@ -62,6 +63,10 @@ class RenderSettings:
         Where each pass's rays go inside their pixels (:mod:`psurf_core.pixel_jitter`):
         ``"independent"`` (a fresh uniform point every pass) or ``"r2"`` (a low-discrepancy
         sequence over the passes, randomly shifted per pixel and seed).
+    photon_sampler : str
+        Where each batch's photons take their random numbers
+        (:mod:`psurf_core.photon_sampler`): ``"independent"`` or ``"sobol"`` (each photon a
+        point of a scrambled Sobol set drawn for the batch).
     """
 
     photons: int = 20_000
@@ -70,9 +75,11 @@ class RenderSettings:
     radius_shrink: float = 1.0
     memory_budget_mib: int = DEFAULT_MEMORY_BUDGET_MIB
     pixel_sampler: str = "independent"
+    photon_sampler: str = "independent"
 
     def __post_init__(self):
         check_sampler(self.pixel_sampler)
+        check_photon_sampler(self.photon_sampler)
 
     @property
     def max_pairs(self) -> int:
@@ -141,7 +148,9 @@ def photon_pass(
     batch_ss = photon_ss.spawn(n_batches)
     for b in range(n_batches):
         n = min(PHOTON_BATCH, settings.photons - b * PHOTON_BATCH)
-        paths = trace(scene, n, np.random.default_rng(batch_ss[b]), blockers=blockers)
+        draws = batch_draws(settings.photon_sampler, np.random.default_rng(batch_ss[b]), scene,
+                            n, trace_depth(scene))
+        paths = trace(scene, n, draws, blockers=blockers)
         if record is not None:
             record.paths.append(paths)
         for group, full_group in estimator.sets:

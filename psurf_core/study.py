@@ -419,6 +419,7 @@ def compare(
         "photons_per_pass": [r["photons_per_pass"] for r in results],
         "spp": settings.spp,
         "pixel_sampler": settings.pixel_sampler,
+        "photon_sampler": settings.photon_sampler,
         "radius": settings.radius,
         "radius_shrink": settings.radius_shrink,
         "relmse_eps": RELMSE_EPS,

@@ -104,7 +104,8 @@ def write_compare_md(path: str, study: dict) -> None:
         "",
         f"- scatter counts K in [{study['min_scatter']}, {_hi(study['max_scatter'])}], "
         f"{w}x{h} pixels, spp {study['spp']}, pixel sampler "
-        f"{study.get('pixel_sampler', 'independent')}, photons per pass in the table",
+        f"{study.get('pixel_sampler', 'independent')}, photon sampler "
+        f"{study.get('photon_sampler', 'independent')}, photons per pass in the table",
         f"- {study['seconds']:g} s of {study['clock']} time per run and estimator, "
         f"{study['runs']} run(s), seeds "
         f"{study['seed']}..{study['seed'] + study['runs'] - 1}",

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import sampling
+from .photon_sampler import uniforms
 from .scene import AreaLight, MeshLight, PointLight, Scene
 from .variates import cos_sin_turn
 
@@ -150,11 +151,11 @@ def emit(scene: Scene, rng: np.random.Generator, n: int) -> dict:
             continue
         beta[sel] = lt.power_rgb / pmf[li]
         if isinstance(lt, PointLight):
-            r = rng.random(2 * m)
+            r = uniforms(rng, 2, m)
             x0[sel], normal[sel] = lt.position, lt.axis
             w1[sel] = uniform_direction(r[:m], *cos_sin_turn(r[m:]))
         elif isinstance(lt, AreaLight):
-            r = rng.random(4 * m)
+            r = uniforms(rng, 4, m, pairs=True)
             nl = np.broadcast_to(lt.normal, (m, 3))
             uv[sel] = r[: 2 * m].reshape(m, 2)
             x0[sel] = parallelogram_point(lt.corner, lt.edge_u, lt.edge_v, uv[sel])
@@ -162,7 +163,7 @@ def emit(scene: Scene, rng: np.random.Generator, n: int) -> dict:
             w1[sel] = cosine_direction(nl, r[2 * m : 3 * m], *cos_sin_turn(r[3 * m :]))
         elif isinstance(lt, MeshLight):
             k = _discrete(lt.areas / lt.area, rng, m)
-            r = rng.random(4 * m)
+            r = uniforms(rng, 4, m)
             tri[sel] = k
             uv[sel], x0[sel] = triangle_point(lt.triangles[k], r[:m], r[m : 2 * m])
             normal[sel] = lt.normals[k]
@@ -177,7 +178,7 @@ def emit(scene: Scene, rng: np.random.Generator, n: int) -> dict:
 def _discrete(pmf, rng, n):
     """``sampling.sample_discrete``: one variate per index, the index :func:`search_right`
     finds in the normalised cdf (clamped to the last; no search for one entry). (n,) intp."""
-    u = rng.random(n)
+    u = uniforms(rng, 1, n)
     if len(pmf) == 1:
         return np.zeros(n, dtype=np.intp)
     cdf = np.cumsum(pmf)

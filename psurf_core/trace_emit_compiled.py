@@ -15,6 +15,7 @@ from . import (
     variates_compiled,  # noqa: F401 - registers the twins the loops call
 )
 from .kernels.jit import kernel, twin
+from .photon_sampler import uniforms
 from .scene import AreaLight, MeshLight, PointLight
 
 
@@ -173,7 +174,7 @@ def _cdf(pmf):
 
 def _discrete(cdf, rng, n, out):
     """``trace_emit._discrete`` with the compiled search, into ``out`` ((n,) intp)."""
-    u = rng.random(n)
+    u = uniforms(rng, 1, n)
     if cdf is None:
         out[:] = 0
     else:
@@ -236,15 +237,15 @@ def emit(scene, rng, n: int, out: dict | None = None) -> dict:
         if m == 0:
             continue
         if isinstance(lt, PointLight):
-            r = rng.random(2 * m)
+            r = uniforms(rng, 2, m)
             emit_point(rows, one, r[:m], r[m:], *args, *fields)
         elif isinstance(lt, AreaLight):
-            r = rng.random(4 * m)
+            r = uniforms(rng, 4, m, pairs=True)
             emit_area(rows, one, r[: 2 * m].reshape(m, 2), r[2 * m : 3 * m], r[3 * m :], *args,
                       *fields)
         else:
             k = _discrete(args[0], rng, m, np.empty(m, dtype=np.intp))
-            r = rng.random(4 * m)
+            r = uniforms(rng, 4, m)
             emit_mesh(rows, one, k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], r[3 * m :],
                       *args[1:], *fields)
     return e

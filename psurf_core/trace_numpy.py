@@ -18,6 +18,7 @@ import numpy as np
 from . import sampling
 from .constants import MAX_TRACE_DEPTH, PARALLEL_EPS, ROULETTE_START
 from .geometry import Blockers, inside_box
+from .photon_sampler import uniforms
 from .scene import Scene
 from .trace_emit import direction_about, emit
 from .variates import cos_sin_turn, neg_log_complement
@@ -298,16 +299,16 @@ def trace_numpy(scene: Scene, n_photons: int, rng: np.random.Generator, blockers
         # a photon goes on only while a technique can still use the segment.
         if j > 1:
             q = roulette_survival(scene, j - 1)
-            u = rng.random(photon.size) if q < 1.0 else None
+            u = uniforms(rng, 1, photon.size) if q < 1.0 else None
             keep = survives(oks[max(j - LOOKBACK, 0)][photon], u, q)
             photon, x, w = photon[keep], x[keep], w[keep]
             beta = scattered_weight(beta[keep], q, med.albedo)
             m = photon.size
-            r = rng.random(3 * m)  # the phase cosine, the azimuth, the flight: one call
+            r = uniforms(rng, 3, m)  # the phase cosine, the azimuth, the flight: one call
             w = direction_about(w, phase_cosine(med.phase.g, r[:m]), *cos_sin_turn(r[m : 2 * m]))
             t = free_flight(r[2 * m :], med.sigma_t)
         else:
-            t = free_flight(rng.random(n_photons), med.sigma_t)
+            t = free_flight(uniforms(rng, 1, n_photons), med.sigma_t)
         s, ok = step(photon, x, w, beta, t, oks[-1], box, blockers)
         steps.append(s)
         oks.append(ok)

@@ -28,6 +28,7 @@ IDENTITY_FLAGS = {
     "min_scatter": "--min-scatter", "max_scatter": "--max-scatter",
     "memory_budget_mib": "--memory-budget", "radius": "--radius",
     "radius_shrink": "--radius-shrink", "pixel_sampler": "--pixel-sampler",
+    "photon_sampler": "--photon-sampler",
 }
 
 
@@ -49,7 +50,7 @@ def describe_difference(key: str, saved, current, scene_file: str) -> str:
     def show(v):
         return "(not set)" if v is None else repr(v) if isinstance(v, str) else str(v)
 
-    if key == "pixel_sampler":  # the identity leaves the default out (older checkpoints)
+    if key in ("pixel_sampler", "photon_sampler"):  # the identity leaves the default out
         saved, current = saved or "independent", current or "independent"
     return (f"the checkpoint was made with {flag} {show(saved)}, "
             f"the command line has {show(current)}")

@@ -157,6 +157,19 @@ def add_pixel_sampler_flag(parser, default: str = "independent") -> None:
              f"image's); default {default}")
 
 
+def add_photon_sampler_flag(parser, default: str = "independent") -> None:
+    """``--photon-sampler`` on ``parser`` (``args.photon_sampler``), worded alike in every
+    command that renders passes (:mod:`psurf_core.photon_sampler`)."""
+    from psurf_core.photon_sampler import PHOTON_SAMPLERS
+
+    parser.add_argument(
+        "--photon-sampler", choices=PHOTON_SAMPLERS, default=default,
+        help="where each batch's photons take their random numbers: 'independent' or 'sobol' "
+             "(each photon a point of a scrambled Sobol set drawn for the batch: each photon "
+             "stays uniformly sampled, the batch covers its light points and directions "
+             f"evenly; passes stay independent); default {default}")
+
+
 # --------------------------------------------------------------------------- checks
 
 

@@ -22,6 +22,7 @@ import textwrap
 from .common import (
     PROG,
     CliError,
+    add_photon_sampler_flag,
     add_pixel_sampler_flag,
     explain_estimator_error,
     fail,
@@ -132,6 +133,7 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
     add_pixel_sampler_flag(p, default="r2")
+    add_photon_sampler_flag(p, default="sobol")
     p.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
                    help="override the scene's [render] min_scatter (>= 1)")
     p.add_argument("--max-scatter", type=scatter_int, default=None, metavar="B",
@@ -182,7 +184,8 @@ def _settings(args):
     first = args.photons[0]
     kw = {"photons": DEFAULT_PHOTONS if first == "auto" else first, "spp": args.spp,
           "radius": args.radius,
-          "radius_shrink": args.radius_shrink, "pixel_sampler": args.pixel_sampler}
+          "radius_shrink": args.radius_shrink, "pixel_sampler": args.pixel_sampler,
+          "photon_sampler": args.photon_sampler}
     if args.memory_budget is not None:
         kw["memory_budget_mib"] = args.memory_budget
     return RenderSettings(**kw)

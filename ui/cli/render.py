@@ -46,6 +46,7 @@ from .checkpoint import (
 )
 from .common import (
     CliError,
+    add_photon_sampler_flag,
     add_pixel_sampler_flag,
     add_resolution_flag,
     check_output,
@@ -121,6 +122,7 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
     r.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
     add_pixel_sampler_flag(r)
+    add_photon_sampler_flag(r)
     budget = r.add_mutually_exclusive_group()
     budget.add_argument("--passes", type=positive_int, default=None, metavar="P",
                         help=f"number of passes (default {DEFAULT_PASSES})")
@@ -198,7 +200,8 @@ def cmd_render(args) -> int:
     est = parse_estimator_flag(args.estimator, scene)
 
     settings_kw = {"photons": args.photons, "spp": args.spp, "radius": args.radius,
-                   "radius_shrink": args.radius_shrink, "pixel_sampler": args.pixel_sampler}
+                   "radius_shrink": args.radius_shrink, "pixel_sampler": args.pixel_sampler,
+                   "photon_sampler": args.photon_sampler}
     if args.memory_budget is not None:
         settings_kw["memory_budget_mib"] = args.memory_budget
     settings = RenderSettings(**settings_kw)
