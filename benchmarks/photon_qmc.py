@@ -1,32 +1,29 @@
 """Would low-discrepancy photons pay? One photon's variance with the photons' random numbers
-drawn as randomized quasi-Monte Carlo points instead of independently (an experiment; psurf's
-tracer keeps independent photons).
+drawn from several point sets (``psurf_core.photon_sampler`` offers ``independent`` and
+``sobol``; this tries two more).
 
-Each photon of a batch takes one point of a ``D``-dimensional set (``D``: the light point
-``u, v``, the emission direction's two numbers, the first flight, and per later segment the
-roulette number, the phase cosine, the azimuth and the flight), its coordinates in the order
-the tracer consumes them (``psurf_core.trace_numpy``; one area light only). Every point is
-uniform on ``[0, 1)^D``, so every photon, and every pass, stays unbiased; only the photons'
-joint distribution within a batch changes:
+Each photon of a batch takes one point of a ``D``-dimensional set, each stage of Trace taking
+the set's next dimensions (:class:`psurf_core.photon_sampler.SobolDraws`' layout, the
+compiled tracer, any scene). Every point is uniform on ``[0, 1)^D``, so every photon, and
+every pass, stays unbiased; only the photons' joint distribution within a batch changes:
 
-* ``iid``: independent numbers (the tracer's distribution, from another generator);
+* ``independent``: the tracer's own draws (``--photon-sampler independent``);
+* ``sobol``: scrambled Sobol points (``--photon-sampler sobol``);
 * ``kron``: the Kronecker (R_D) sequence ``frac(j alpha + shift)``, one uniform shift a batch;
-* ``sobol``: scrambled Sobol points (``scipy.stats.qmc``);
 * ``lhs``: each dimension stratified independently (Latin hypercube).
 
 Per estimator it prints ``Vp``, one photon's variance (mean per-pixel variance of passes
-through the pixel centres times the photons a pass, as ``benchmarks/ablation.py``). An
-estimator whose ``Vp`` falls most gains most; at equal time only the ratio between two
-estimators' gains moves a comparison.
+through the pixel centres times the photons a pass, as ``benchmarks/ablation.py``). At equal
+time only the ratio between two estimators' gains moves a comparison.
 
 Usage::
 
     python benchmarks/photon_qmc.py MODE SCENE.toml KMIN KMAX "SPEC:PASSES;..." [--photons N]
         [--seed S] [--resolution W,H]
-    python benchmarks/photon_qmc.py kron scenes/study_medium.toml 2 3 "fast-multi:200;planes:600"
+    python benchmarks/photon_qmc.py sobol scenes/study_medium.toml 2 3 "fast-multi:400;planes:2500"
 
-Not a test; ``planes``' ``Vp`` is heavy-tailed (repeat with more passes before trusting a
-difference of a few tens of percent).
+Not a test; ``planes``' ``Vp`` is heavy-tailed (repeat with more passes and other seeds
+before trusting a difference of a few tens of percent).
 """
 
 from __future__ import annotations
@@ -40,18 +37,18 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from scipy.stats import qmc  # noqa: E402
-
 import psurf_core.render as render_mod  # noqa: E402
 from benchmarks.pass_model import passes_of  # noqa: E402
-from psurf_core import trace_numpy as tn  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
-from psurf_core.scene import AreaLight  # noqa: E402
+from psurf_core.photon_sampler import (  # noqa: E402
+    PHOTON_SAMPLERS,
+    SobolDraws,
+    batch_draws,
+    photon_dimensions,
+)
 from psurf_core.scene_io import load_scene  # noqa: E402
-from psurf_core.trace_emit import cosine_direction, direction_about, parallelogram_point  # noqa: E402
-from psurf_core.variates import cos_sin_turn  # noqa: E402
 
-MODES = ("iid", "kron", "sobol", "lhs")
+MODES = ("independent", "sobol", "kron", "lhs")
 
 
 def golden(d: int) -> float:
@@ -62,61 +59,28 @@ def golden(d: int) -> float:
     return x
 
 
-def points(mode: str, n: int, d: int, rng: np.random.Generator) -> np.ndarray:
-    """(n, d) points in ``[0, 1)^d``, each uniform (module docstring)."""
-    if mode == "iid":
-        return rng.random((n, d))
-    if mode == "kron":
-        alpha = (1.0 / golden(d)) ** np.arange(1, d + 1) % 1.0
-        return (np.arange(n)[:, None] * alpha + rng.random(d)) % 1.0
-    if mode == "sobol":
-        return qmc.Sobol(d, scramble=True, seed=rng).random(n)
-    if mode == "lhs":
-        return (np.argsort(rng.random((d, n)), axis=1).T + rng.random((n, d))) / n
-    raise ValueError(mode)
+class PointDraws(SobolDraws):
+    """:class:`SobolDraws` with another point set (``kron`` or ``lhs``): the same layout."""
+
+    def __init__(self, mode: str, rng: np.random.Generator, n: int, dims: int):
+        self.rng, self.n, self.dims, self.next = rng, int(n), int(dims), 0
+        if mode == "kron":
+            alpha = (1.0 / golden(dims)) ** np.arange(1, dims + 1) % 1.0
+            self.points = (np.arange(n)[:, None] * alpha + rng.random(dims)) % 1.0
+        else:
+            self.points = (np.argsort(rng.random((dims, n)), axis=1).T
+                           + rng.random((n, dims))) / n
 
 
-def tracer(mode: str):
-    """``trace(scene, n, rng, blockers=...)`` drawing photon ``j``'s numbers from point ``j``
-    of ``mode``'s set (the numpy reference's stages, one area light)."""
+def draws_of(mode: str):
+    """``render.batch_draws`` drawing every batch from ``mode``'s set."""
 
-    def trace(scene, n, rng, blockers=None, max_depth=None, reference=False):
-        med = scene.medium
-        box = (np.asarray(med.bounds_min, float), np.asarray(med.bounds_max, float))
-        depth = tn.trace_depth(scene) if max_depth is None else int(max_depth)
-        u = points(mode, n, 5 + 4 * (depth - 1), rng)
-        lt = scene.lights[0]
-        nl = np.broadcast_to(lt.normal, (n, 3))
-        e = dict(light=np.zeros(n, np.intp), light_pmf=np.full(n, scene.light_pmf[0]),
-                 light_uv=u[:, :2].copy(), tri=np.full(n, -1, np.int64),
-                 light_normal=np.array(nl),
-                 x0=parallelogram_point(lt.corner, lt.edge_u, lt.edge_v, u[:, :2]),
-                 w1=cosine_direction(nl, u[:, 2], *cos_sin_turn(u[:, 3])),
-                 beta=np.tile(lt.power_rgb / scene.light_pmf[0], (n, 1)))
-        photon, x, w, beta = np.arange(n), e["x0"], e["w1"], e["beta"]
-        oks, steps, col = [np.ones(n, bool)], [], 5
-        for j in range(1, depth + 1):
-            if j > 1:
-                q = tn.roulette_survival(scene, j - 1)
-                keep = tn.survives(oks[max(j - tn.LOOKBACK, 0)][photon],
-                                   u[photon, col] if q < 1.0 else None, q)
-                photon, x, w = photon[keep], x[keep], w[keep]
-                beta = tn.scattered_weight(beta[keep], q, med.albedo)
-                w = direction_about(w, tn.phase_cosine(med.phase.g, u[photon, col + 1]),
-                                    *cos_sin_turn(u[photon, col + 2]))
-                t = tn.free_flight(u[photon, col + 3], med.sigma_t)
-                col += 4
-            else:
-                t = tn.free_flight(u[:, 4], med.sigma_t)
-            s, ok = tn.step(photon, x, w, beta, t, oks[-1], box, blockers)
-            steps.append(s)
-            oks.append(ok)
-            x = s.x_end
-            if photon.size == 0:
-                break
-        return tn.assemble(e, steps, oks)
+    def draws(sampler, rng, scene, n, depth):
+        if mode in PHOTON_SAMPLERS:
+            return batch_draws(mode, rng, scene, n, depth)
+        return PointDraws(mode, rng, n, photon_dimensions(scene, depth))
 
-    return trace
+    return draws
 
 
 def main(argv=None) -> int:
@@ -134,14 +98,12 @@ def main(argv=None) -> int:
     if args.resolution:
         w, h = (int(v) for v in args.resolution.split(","))
         scene = replace(scene, camera=replace(scene.camera, width=w, height=h))
-    if len(scene.lights) != 1 or not isinstance(scene.lights[0], AreaLight):
-        ap.error(f"{args.scene}: one area light only (this experiment's emission)")
-    render_mod.trace = tracer(args.mode)
+    render_mod.batch_draws = draws_of(args.mode)
     for item in args.specs.split(";"):
         spec, passes = item.rsplit(":", 1)
         v, c = passes_of(scene, parse_estimator(spec, scene), args.photons, int(passes), False,
                          args.seed)
-        print(f"{args.mode:6s} {spec:14s} {passes:>5} passes of {args.photons}: "
+        print(f"{args.mode:11s} {spec:14s} {passes:>5} passes of {args.photons}: "
               f"Vp {v * args.photons:.4e}, {c * 1e3:.1f} CPU ms a pass", flush=True)
     return 0
 

@@ -16,7 +16,7 @@ and azimuth, a roulette), laid out as the stage reads them.
   which are independent of the earlier ones. The batch's photons together cover the cube
   evenly, so a photon-surface estimate, smooth in the photon's first dimensions (its light
   point and emission direction), varies less from pass to pass: on ``study_medium``, K = 2..3,
-  ``fast-multi``'s per-photon variance was 0.79x at 64x48 and 0.68x at 256x192 while photon
+  ``fast-multi``'s per-photon variance was 0.77x at 64x48 and 0.57x at 256x192 while photon
   planes' did not move beyond their tail's noise (docs/study.md, "Sobol photons"). Passes
   stay independent (each batch is scrambled afresh), so per-pass error bars hold.
 
