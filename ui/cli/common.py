@@ -143,31 +143,26 @@ def add_resolution_flag(parser) -> None:
                         help="render at W x H pixels instead of the scene's [camera] resolution")
 
 
-def add_pixel_sampler_flag(parser, default: str = "independent") -> None:
-    """``--pixel-sampler`` on ``parser`` (``args.pixel_sampler``), worded alike in every
-    command that renders passes (:mod:`psurf_core.pixel_jitter`)."""
+def add_sampler_flags(parser, pixel: str = "independent", photon: str = "independent") -> None:
+    """``--pixel-sampler`` and ``--photon-sampler`` on ``parser`` (``args.pixel_sampler``,
+    ``args.photon_sampler``; defaults ``pixel`` and ``photon``), worded alike in every command
+    that renders passes (:mod:`psurf_core.pixel_jitter`, :mod:`psurf_core.photon_sampler`)."""
+    from psurf_core.photon_sampler import PHOTON_SAMPLERS
     from psurf_core.pixel_jitter import SAMPLERS
 
     parser.add_argument(
-        "--pixel-sampler", choices=SAMPLERS, default=default,
+        "--pixel-sampler", choices=SAMPLERS, default=pixel,
         help="where each pass's camera rays go inside their pixels: 'independent' (a fresh "
              "uniform point every pass) or 'r2' (a low-discrepancy sequence over the passes, "
              "shifted at random per pixel and seed: the pixel-area noise falls much faster; "
              "passes are no longer independent, so per-pass variance overstates the "
-             f"image's); default {default}")
-
-
-def add_photon_sampler_flag(parser, default: str = "independent") -> None:
-    """``--photon-sampler`` on ``parser`` (``args.photon_sampler``), worded alike in every
-    command that renders passes (:mod:`psurf_core.photon_sampler`)."""
-    from psurf_core.photon_sampler import PHOTON_SAMPLERS
-
+             f"image's); default {pixel}")
     parser.add_argument(
-        "--photon-sampler", choices=PHOTON_SAMPLERS, default=default,
+        "--photon-sampler", choices=PHOTON_SAMPLERS, default=photon,
         help="where each batch's photons take their random numbers: 'independent' or 'sobol' "
              "(each photon a point of a scrambled Sobol set drawn for the batch: each photon "
              "stays uniformly sampled, the batch covers its light points and directions "
-             f"evenly; passes stay independent); default {default}")
+             f"evenly; passes stay independent); default {photon}")
 
 
 # --------------------------------------------------------------------------- checks

@@ -22,8 +22,7 @@ import textwrap
 from .common import (
     PROG,
     CliError,
-    add_photon_sampler_flag,
-    add_pixel_sampler_flag,
+    add_sampler_flags,
     explain_estimator_error,
     fail,
     load_reference,
@@ -132,8 +131,7 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                    help="render at W x H pixels instead of the scene's resolution")
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
-    add_pixel_sampler_flag(p, default="r2")
-    add_photon_sampler_flag(p, default="sobol")
+    add_sampler_flags(p, pixel="r2", photon="sobol")
     p.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
                    help="override the scene's [render] min_scatter (>= 1)")
     p.add_argument("--max-scatter", type=scatter_int, default=None, metavar="B",

@@ -46,9 +46,8 @@ from .checkpoint import (
 )
 from .common import (
     CliError,
-    add_photon_sampler_flag,
-    add_pixel_sampler_flag,
     add_resolution_flag,
+    add_sampler_flags,
     check_output,
     nonempty_path,
     nonneg_float,
@@ -121,8 +120,7 @@ def add_render_parser(sub, estimators: str) -> argparse.ArgumentParser:
     add_resolution_flag(r)
     r.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
-    add_pixel_sampler_flag(r)
-    add_photon_sampler_flag(r)
+    add_sampler_flags(r)
     budget = r.add_mutually_exclusive_group()
     budget.add_argument("--passes", type=positive_int, default=None, metavar="P",
                         help=f"number of passes (default {DEFAULT_PASSES})")
