@@ -28,11 +28,14 @@ Usage::
 
     python benchmarks/ablation.py SCENE.toml KMIN KMAX [--photons 2000] [--passes 40]
         [--cost-passes 3] [--baseline-passes N] [--seed 7] [--skip-numpy]
-        [--specs SPEC;SPEC;...]
+        [--specs SPEC;SPEC;...] [--resolution W,H] [--photon-sampler sobol]
+        [--reference REF.npz]
     python benchmarks/ablation.py scenes/study_medium.toml 2 3
 
 ``--specs`` measures the given estimators (``;``-separated) against ``planes`` instead of the
-rungs: a preset's variants on the same footing.
+rungs: a preset's variants on the same footing. ``--reference`` weighs each pixel's variance
+by ``1 / (R^2 + EPS mean(R)^2)`` of that image: ``Vp`` is then what a relMSE sees of one
+photon's noise (its dim pixels count more than in the plain mean).
 
 Not a test: CPU time moves with the machine's load; compare within one run.
 """
@@ -44,15 +47,17 @@ import os
 import sys
 import time
 from contextlib import contextmanager
+from dataclasses import replace
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from benchmarks.pass_model import passes_of  # noqa: E402
+from benchmarks.pass_model import passes_of, reference_image  # noqa: E402
+from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core import render as render_mod  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.kernels import fused as fused_mod  # noqa: E402
+from psurf_core.photon_sampler import PHOTON_SAMPLERS  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
-from psurf_core.scene_io import load_scene  # noqa: E402
 
 LONG = "mis:plane-t1t2+plane-t1t3+plane-t2t3+cone+cylinder"  # = paper-multi
 SHORT = "mis:planes+plane-t1t3-short+plane-t2t3-short+cone-short+cylinder-short"
@@ -89,24 +94,25 @@ def mode(name: str):
         render_mod.fused_pass, fused_mod.weight_of = real_fused, real_weight
 
 
-def photon_variance(scene, est, photons: int, passes: int, seed: int) -> float:
-    """``Vp``: mean per-pixel variance of ``passes`` passes through the pixel centres, times
-    ``photons`` (:func:`benchmarks.pass_model.passes_of`)."""
-    return passes_of(scene, est, photons, passes, False, seed)[0] * photons
+def photon_variance(scene, est, photons: int, passes: int, seed: int,
+                    settings: RenderSettings, reference=None) -> float:
+    """``Vp``: mean per-pixel variance of ``passes`` passes through the pixel centres (each
+    over ``R^2 + EPS mean(R)^2`` with a ``reference``), times ``photons``
+    (:func:`benchmarks.pass_model.passes_of`)."""
+    return passes_of(scene, est, photons, passes, False, seed, settings, reference)[0] * photons
 
 
-def photon_cost(scene, est, photons: int, passes: int, seed: int) -> float:
+def photon_cost(scene, est, photons: int, passes: int, seed: int,
+                settings: RenderSettings) -> float:
     """Median CPU seconds a photon costs in a whole (jittered) pass, after one warm-up
     pass."""
-    render_pass(scene, est, 0, seed + 1, RenderSettings(photons=photons))
-    return passes_of(scene, est, photons, passes, True, seed + 2)[1] / photons
+    render_pass(scene, est, 0, seed + 1, replace(settings, photons=photons))
+    return passes_of(scene, est, photons, passes, True, seed + 2, settings)[1] / photons
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scene")
-    ap.add_argument("kmin", type=int)
-    ap.add_argument("kmax", type=int)
+    add_scene_args(ap)
     ap.add_argument("--photons", type=int, default=2000)
     ap.add_argument("--passes", type=int, default=40)
     ap.add_argument("--cost-passes", type=int, default=3)
@@ -114,8 +120,14 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--skip-numpy", action="store_true", help="leave out rungs 1 and 2")
     ap.add_argument("--specs", default=None, help="';'-separated estimators instead of the rungs")
+    ap.add_argument("--photon-sampler", choices=PHOTON_SAMPLERS, default="independent")
+    ap.add_argument("--reference", default=None, metavar="REF.npz",
+                    help="Vp of the relMSE's noise part: each pixel's variance over "
+                         "R^2 + EPS mean(R)^2 of this reference (same size)")
     args = ap.parse_args(argv)
-    scene = load_scene(args.scene).with_scatter(args.kmin, args.kmax)
+    scene = scene_of(args)
+    settings = RenderSettings(photon_sampler=args.photon_sampler)
+    ref = None if args.reference is None else reference_image(args.reference, scene)
     print(f"# python benchmarks/ablation.py {' '.join(sys.argv[1:] if argv is None else argv)}")
     print(f"# {args.scene} K={args.kmin}..{args.kmax}, {args.photons} photons a pass, "
           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
@@ -135,10 +147,10 @@ def main(argv=None) -> int:
             # the variance is measured once, on the compiled path.
             warm_up(scene, est, RenderSettings(photons=64))
             n = (args.baseline_passes or 4 * args.passes) if base is None else args.passes
-            vps[spec] = photon_variance(scene, est, args.photons, n, args.seed)
+            vps[spec] = photon_variance(scene, est, args.photons, n, args.seed, settings, ref)
         with mode(m):
             warm_up(scene, est, RenderSettings(photons=64))
-            c = photon_cost(scene, est, args.photons, args.cost_passes, args.seed)
+            c = photon_cost(scene, est, args.photons, args.cost_passes, args.seed, settings)
         vp = vps[spec]
         base = base or (vp, c)
         print(f"{label:<44} {vp:10.3e} {c * 1e6:10.1f} {vp * c:10.3e} "

@@ -38,18 +38,17 @@ import argparse
 import math
 import os
 import sys
-from dataclasses import replace
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from benchmarks.pass_model import model  # noqa: E402
+from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core import render as render_mod  # noqa: E402
 from psurf_core.camera import camera_rays  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass  # noqa: E402
-from psurf_core.scene_io import load_scene  # noqa: E402
 
 
 def efficiency(scene, spec: str, photons: int, passes: int, seed: int = 5) -> dict:
@@ -100,9 +99,7 @@ def required_ratio(target: float, first: dict, second: dict) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("scene")
-    ap.add_argument("kmin", type=int)
-    ap.add_argument("kmax", type=int)
+    add_scene_args(ap)
     ap.add_argument("passes", type=int)
     ap.add_argument("photons", type=int)
     ap.add_argument("specs", nargs="+")
@@ -111,7 +108,7 @@ def main(argv=None) -> int:
     ap.add_argument("--model-passes", type=int, default=12,
                     help="passes per size of the pass model (with --target)")
     a = ap.parse_args(argv)
-    scene = replace(load_scene(a.scene), min_scatter=a.kmin, max_scatter=a.kmax)
+    scene = scene_of(a)
     args = sys.argv[1:] if argv is None else argv
     print(f"# python benchmarks/coverage_floor.py {' '.join(args)}")
     runs = [efficiency(scene, s, a.photons, a.passes) for s in a.specs]

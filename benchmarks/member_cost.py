@@ -28,9 +28,9 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import numba  # noqa: E402
 
+from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from benchmarks.stages import stage_pass  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
-from psurf_core.scene_io import load_scene  # noqa: E402
 
 
 def _walk(res: dict, name: str) -> tuple[float, int]:
@@ -40,15 +40,13 @@ def _walk(res: dict, name: str) -> tuple[float, int]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scene")
-    ap.add_argument("kmin", type=int)
-    ap.add_argument("kmax", type=int)
+    add_scene_args(ap)
     ap.add_argument("spec", help="an MIS set or preset with one group")
     ap.add_argument("--photons", type=int, default=2000)
     ap.add_argument("--rounds", type=int, default=4)
     args = ap.parse_args(argv)
     numba.set_num_threads(1)
-    scene = load_scene(args.scene).with_scatter(args.kmin, args.kmax)
+    scene = scene_of(args)
     est = parse_estimator(args.spec, scene)
     (group, full), = est.sets
     shares = {m.name: float(getattr(m, "share", 1.0)) for m in group}

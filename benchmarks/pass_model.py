@@ -35,6 +35,7 @@ from psurf_core import render as render_mod  # noqa: E402
 from psurf_core.accumulate import Welford  # noqa: E402
 from psurf_core.camera import camera_rays  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
+from psurf_core.metrics import var_relmse  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
 
@@ -42,9 +43,14 @@ SIZES = (256, 2048)
 
 
 def passes_of(scene, est, photons: int, passes: int, jitter: bool,
-              seed: int = 7) -> tuple[float, float]:
+              seed: int = 7, settings: RenderSettings | None = None,
+              reference: np.ndarray | None = None) -> tuple[float, float]:
     """(mean per-pass pixel variance, median CPU seconds a pass) of ``passes`` passes
-    (pass ``i`` of seed ``seed``)."""
+    (pass ``i`` of seed ``seed``; ``settings`` with ``photons`` photons, default
+    :class:`RenderSettings`'s). With a ``reference`` image (H, W, 3) the mean is of the
+    variance over ``R^2 + EPS mean(R)^2`` (:func:`psurf_core.metrics.var_relmse`: what a
+    relMSE against it sees of the noise)."""
+    settings = replace(settings or RenderSettings(), photons=photons)
     real = render_mod.camera_rays
     render_mod.camera_rays = lambda *a, **k: camera_rays(*a, jitter=jitter, **k)
     try:
@@ -52,12 +58,23 @@ def passes_of(scene, est, photons: int, passes: int, jitter: bool,
         cpu = []
         for i in range(passes):
             a = time.process_time()
-            img = render_pass(scene, est, i, seed, RenderSettings(photons=photons))
+            img = render_pass(scene, est, i, seed, settings)
             cpu.append(time.process_time() - a)
             acc.add(img)
     finally:
         render_mod.camera_rays = real
-    return float(np.mean(acc.variance)), float(np.median(cpu))
+    v = float(np.mean(acc.variance)) if reference is None else var_relmse(acc.variance, reference)
+    return v, float(np.median(cpu))
+
+
+def reference_image(path: str, scene) -> np.ndarray:
+    """The mean image (H, W, 3) of an ``app.py render`` .npz, checked against ``scene``'s
+    size."""
+    ref = np.load(path)["mean"].astype(np.float64)
+    if ref.shape[:2] != (scene.camera.height, scene.camera.width):
+        raise SystemExit(f"{path}: {ref.shape[1]}x{ref.shape[0]} pixels, the scene "
+                         f"{scene.camera.width}x{scene.camera.height} (--resolution?)")
+    return ref
 
 
 def model(scene, spec: str, passes: int) -> dict:

@@ -27,8 +27,8 @@ import time
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 import psurf_core.render as R  # noqa: E402
+from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
-from psurf_core.scene_io import load_scene  # noqa: E402
 
 
 def _clocked(table, name, fn):
@@ -47,14 +47,12 @@ def _clocked(table, name, fn):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("scene")
-    ap.add_argument("kmin", type=int)
-    ap.add_argument("kmax", type=int)
+    add_scene_args(ap)
     ap.add_argument("spec")
     ap.add_argument("--photons", type=int, default=1404)
     ap.add_argument("--passes", type=int, default=20)
     a = ap.parse_args(argv)
-    scene = load_scene(a.scene).with_scatter(a.kmin, a.kmax)
+    scene = scene_of(a)
     est = parse_estimator(a.spec, scene)
     phases = collections.defaultdict(lambda: [0.0, 0.0])
 

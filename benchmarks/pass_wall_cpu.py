@@ -20,21 +20,19 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
+from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass  # noqa: E402
-from psurf_core.scene_io import load_scene  # noqa: E402
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("scene")
-    ap.add_argument("kmin", type=int)
-    ap.add_argument("kmax", type=int)
+    add_scene_args(ap)
     ap.add_argument("specs", nargs="+", help="SPEC:PHOTONS")
     ap.add_argument("--passes", type=int, default=40)
     ap.add_argument("--rounds", type=int, default=2, help="each spec this many times, in turn")
     a = ap.parse_args()
-    scene = load_scene(a.scene).with_scatter(a.kmin, a.kmax)
+    scene = scene_of(a)
     print("# python benchmarks/pass_wall_cpu.py " + " ".join(sys.argv[1:]))
     for _ in range(a.rounds):
         for item in a.specs:

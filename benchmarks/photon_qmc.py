@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from dataclasses import replace
 
 import numpy as np
 
@@ -39,6 +38,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import psurf_core.render as render_mod  # noqa: E402
 from benchmarks.pass_model import passes_of  # noqa: E402
+from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.photon_sampler import (  # noqa: E402
     PHOTON_SAMPLERS,
@@ -46,7 +46,6 @@ from psurf_core.photon_sampler import (  # noqa: E402
     batch_draws,
     photon_dimensions,
 )
-from psurf_core.scene_io import load_scene  # noqa: E402
 
 MODES = ("independent", "sobol", "kron", "lhs")
 
@@ -86,18 +85,12 @@ def draws_of(mode: str):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("mode", choices=MODES)
-    ap.add_argument("scene")
-    ap.add_argument("kmin", type=int)
-    ap.add_argument("kmax", type=int)
+    add_scene_args(ap)
     ap.add_argument("specs", help='"SPEC:PASSES;SPEC:PASSES"')
     ap.add_argument("--photons", type=int, default=2000)
     ap.add_argument("--seed", type=int, default=7)
-    ap.add_argument("--resolution", default=None, metavar="W,H")
     args = ap.parse_args(argv)
-    scene = load_scene(args.scene).with_scatter(args.kmin, args.kmax)
-    if args.resolution:
-        w, h = (int(v) for v in args.resolution.split(","))
-        scene = replace(scene, camera=replace(scene.camera, width=w, height=h))
+    scene = scene_of(args)
     render_mod.batch_draws = draws_of(args.mode)
     for item in args.specs.split(";"):
         spec, passes = item.rsplit(":", 1)

@@ -35,11 +35,11 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import numpy as np  # noqa: E402
 
+from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core import pass_size as ps  # noqa: E402
 from psurf_core.accumulate import Welford  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
-from psurf_core.scene_io import load_scene  # noqa: E402
 
 #: The previous pilot: passes of each of its two sizes.
 TWO_SIZE_PASSES = 6
@@ -61,16 +61,13 @@ def two_size_terms(scene, est, settings) -> tuple[float, float]:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("scene")
-    p.add_argument("kmin", type=int)
-    p.add_argument("kmax", type=int)
+    add_scene_args(p)
     p.add_argument("specs", nargs="+")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--budget", type=float, default=30.0, help="seconds of the run (MIN_PASSES)")
     a = p.parse_args(argv)
     print(f"# python benchmarks/pilot_choice.py {' '.join(sys.argv[1:] if argv is None else argv)}")
-    scene = load_scene(a.scene)
-    scene = scene.with_scatter(a.kmin, a.kmax)
+    scene = scene_of(a)
     st = RenderSettings()
     for spec in a.specs:
         est = parse_estimator(spec, scene)

@@ -24,32 +24,25 @@ import argparse
 import os
 import sys
 from collections import defaultdict
-from dataclasses import replace
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
+from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
-from psurf_core.scene_io import load_scene  # noqa: E402
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scene")
-    ap.add_argument("kmin", type=int)
-    ap.add_argument("kmax", type=int)
+    add_scene_args(ap)
     ap.add_argument("spec")
-    ap.add_argument("--resolution", default=None, help="W,H (default: the scene's)")
     ap.add_argument("--photons", type=int, default=1000)
     ap.add_argument("--passes", type=int, default=30)
     ap.add_argument("--seed", type=int, default=5)
     args = ap.parse_args(argv)
-    scene = load_scene(args.scene).with_scatter(args.kmin, args.kmax)
-    if args.resolution:
-        w, h = (int(v) for v in args.resolution.split(","))
-        scene = replace(scene, camera=replace(scene.camera, width=w, height=h))
+    scene = scene_of(args)
     st = RenderSettings(photons=args.photons)
     est = parse_estimator(args.spec, scene)
     warm_up(scene, est, st)
