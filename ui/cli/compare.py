@@ -124,9 +124,11 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                    help="time of the reference render (default 2 x --time x estimators)")
     p.add_argument("--photons", type=_photons, default=["auto"], metavar="N[,N...]",
                    help="photons per pass: one count for every estimator, or one per "
-                        "estimator in --estimators order; 'auto' (the default) times a pass "
-                        "of each estimator and sizes its passes so that the budget holds "
-                        "about 48 of them")
+                        "estimator in --estimators order; 'auto' (the default) measures "
+                        "each estimator on pilot passes (its fixed and per-photon cost, its "
+                        "photon and pixel variance; not counted in the budget) and picks "
+                        "the pass size that minimises the final image's variance, keeping "
+                        "at least 48 passes (psurf_core/pass_size.py)")
     p.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
                    help="render at W x H pixels instead of the scene's resolution")
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
