@@ -42,14 +42,11 @@ from psurf_core.scene_io import load_scene  # noqa: E402
 SIZES = (256, 2048)
 
 
-def passes_of(scene, est, photons: int, passes: int, jitter: bool,
-              seed: int = 7, settings: RenderSettings | None = None,
-              reference: np.ndarray | None = None) -> tuple[float, float]:
-    """(mean per-pass pixel variance, median CPU seconds a pass) of ``passes`` passes
-    (pass ``i`` of seed ``seed``; ``settings`` with ``photons`` photons, default
-    :class:`RenderSettings`'s). With a ``reference`` image (H, W, 3) the mean is of the
-    variance over ``R^2 + EPS mean(R)^2`` (:func:`psurf_core.metrics.var_relmse`: what a
-    relMSE against it sees of the noise)."""
+def pass_variance(scene, est, photons: int, passes: int, jitter: bool, seed: int = 7,
+                  settings: RenderSettings | None = None) -> tuple[np.ndarray, list[float]]:
+    """(H, W, 3) per-pixel variance of ``passes`` passes (pass ``i`` of seed ``seed``;
+    ``settings`` with ``photons`` photons, default :class:`RenderSettings`'s; camera rays
+    through the pixel centres unless ``jitter``) and the CPU seconds of each pass."""
     settings = replace(settings or RenderSettings(), photons=photons)
     real = render_mod.camera_rays
     render_mod.camera_rays = lambda *a, **k: camera_rays(*a, jitter=jitter, **k)
@@ -63,7 +60,18 @@ def passes_of(scene, est, photons: int, passes: int, jitter: bool,
             acc.add(img)
     finally:
         render_mod.camera_rays = real
-    v = float(np.mean(acc.variance)) if reference is None else var_relmse(acc.variance, reference)
+    return acc.variance, cpu
+
+
+def passes_of(scene, est, photons: int, passes: int, jitter: bool,
+              seed: int = 7, settings: RenderSettings | None = None,
+              reference: np.ndarray | None = None) -> tuple[float, float]:
+    """(mean per-pass pixel variance, median CPU seconds a pass) of :func:`pass_variance`'s
+    passes. With a ``reference`` image (H, W, 3) the mean is of the variance over
+    ``R^2 + EPS mean(R)^2`` (:func:`psurf_core.metrics.var_relmse`: what a relMSE against it
+    sees of the noise)."""
+    var, cpu = pass_variance(scene, est, photons, passes, jitter, seed, settings)
+    v = float(np.mean(var)) if reference is None else var_relmse(var, reference)
     return v, float(np.median(cpu))
 
 
