@@ -32,18 +32,11 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from benchmarks.pass_model import pass_variance, reference_image  # noqa: E402
 from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
-from psurf_core.metrics import RELMSE_EPS  # noqa: E402
+from psurf_core.metrics import var_relmse_map  # noqa: E402
 from psurf_core.photon_sampler import PHOTON_SAMPLERS  # noqa: E402
 from psurf_core.render import RenderSettings, warm_up  # noqa: E402
 
 DECILES = 10
-
-
-def relvar_map(var: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """(H, W): ``var / (R^2 + EPS mean(R)^2)`` averaged over channels (0 where the
-    denominator is 0), as :func:`psurf_core.metrics.var_relmse` sums it."""
-    den = ref ** 2 + RELMSE_EPS * float(np.mean(ref)) ** 2
-    return np.where(den > 0, var / np.where(den > 0, den, 1.0), 0.0).mean(axis=-1)
 
 
 def decile_masks(ref: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -76,7 +69,7 @@ def main(argv=None) -> int:
         warm_up(scene, est, RenderSettings(photons=64))
         var, _ = pass_variance(scene, est, int(photons), int(passes), False, args.seed,
                                RenderSettings(photon_sampler=args.photon_sampler))
-        maps[spec] = relvar_map(var, ref) * int(photons)
+        maps[spec] = var_relmse_map(var, ref) * int(photons)
     names = list(maps)
     base = maps[names[0]]
     print(f"{'decile':>6} {'from':>9} " + " ".join(f"{'share ' + n:>18}" for n in names)

@@ -37,8 +37,20 @@ def relmse(img: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> float:
     return float(np.mean(relmse_map(img, ref, eps)))
 
 
-def var_relmse(var_of_mean: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> float:
+def _var_ratio(var_of_mean: np.ndarray, ref: np.ndarray, eps: float) -> np.ndarray:
     den = _den(ref, eps)
     with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(den > 0, var_of_mean / np.where(den > 0, den, 1.0), 0.0)
-    return float(np.mean(r))
+        return np.where(den > 0, var_of_mean / np.where(den > 0, den, 1.0), 0.0)
+
+
+def var_relmse(var_of_mean: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS) -> float:
+    """The relMSE's noise part: the mean of ``var / (R^2 + eps mean(R)^2)`` over pixels and
+    channels (0 where the denominator is 0), for the variance ``var_of_mean`` of an image."""
+    return float(np.mean(_var_ratio(var_of_mean, ref, eps)))
+
+
+def var_relmse_map(var_of_mean: np.ndarray, ref: np.ndarray,
+                   eps: float = RELMSE_EPS) -> np.ndarray:
+    """(H, W): :func:`var_relmse` per pixel, averaged over channels (where in the image the
+    relMSE's noise sits; ``benchmarks/relvar_deciles.py``)."""
+    return _var_ratio(var_of_mean, ref, eps).mean(axis=-1)

@@ -15,6 +15,19 @@ from psurf_core.kernels.threads import on_threads
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
 
+@pytest.fixture(autouse=True)
+def default_sigint():
+    """Python's own SIGINT handler for each test, whatever pytest inherited: a test suite
+    started in the background of a shell without job control (``make test &`` in a script)
+    inherits an *ignored* SIGINT, which ``held`` rightly leaves ignored, and every test here
+    would then wait for a KeyboardInterrupt that never comes."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def ctrl_c():
     # Delivered to this (main) thread; Python runs the handler at the next bytecode.
     os.kill(os.getpid(), signal.SIGINT)

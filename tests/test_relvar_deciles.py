@@ -1,10 +1,11 @@
-"""benchmarks/relvar_deciles.py: its per-pixel map sums to the relMSE's noise part, and its
-deciles split the lit pixels into ten parts of (nearly) equal size."""
+"""The relMSE's noise part per pixel (metrics.var_relmse_map) averages to its scalar, and
+benchmarks/relvar_deciles.py's deciles split the lit pixels into ten parts of (nearly) equal
+size."""
 
 import numpy as np
 
-from benchmarks.relvar_deciles import DECILES, decile_masks, relvar_map
-from psurf_core.metrics import var_relmse
+from benchmarks.relvar_deciles import DECILES, decile_masks
+from psurf_core.metrics import var_relmse, var_relmse_map
 
 
 def test_map_is_the_relmse_noise_part_per_pixel():
@@ -12,7 +13,7 @@ def test_map_is_the_relmse_noise_part_per_pixel():
     ref = rng.random((12, 16, 3))
     ref[:2] = 0.0  # black rows: EPS mean(R)^2 keeps their weight finite
     var = rng.random((12, 16, 3)) * 1e-3
-    assert np.isclose(relvar_map(var, ref).mean(), var_relmse(var, ref), rtol=1e-12)
+    assert np.isclose(var_relmse_map(var, ref).mean(), var_relmse(var, ref), rtol=1e-12)
 
 
 def test_deciles_partition_the_lit_pixels():
