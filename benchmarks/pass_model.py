@@ -31,6 +31,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
+from psurf_core import SceneError  # noqa: E402
 from psurf_core import render as render_mod  # noqa: E402
 from psurf_core.accumulate import Welford  # noqa: E402
 from psurf_core.camera import camera_rays  # noqa: E402
@@ -38,6 +39,7 @@ from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.metrics import var_relmse  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
+from psurf_core.study import load_reference  # noqa: E402
 
 SIZES = (256, 2048)
 
@@ -76,13 +78,13 @@ def passes_of(scene, est, photons: int, passes: int, jitter: bool,
 
 
 def reference_image(path: str, scene) -> np.ndarray:
-    """The mean image (H, W, 3) of an ``app.py render`` .npz, checked against ``scene``'s
-    size."""
-    ref = np.load(path)["mean"].astype(np.float64)
-    if ref.shape[:2] != (scene.camera.height, scene.camera.width):
-        raise SystemExit(f"{path}: {ref.shape[1]}x{ref.shape[0]} pixels, the scene "
-                         f"{scene.camera.width}x{scene.camera.height} (--resolution?)")
-    return ref
+    """The mean image (H, W, 3) of an ``app.py render`` .npz of ``scene`` (its size and
+    scatter range: :func:`psurf_core.study.load_reference`'s checks, as ``compare
+    --reference``); a bad file ends the benchmark with that message."""
+    try:
+        return load_reference(path, scene).mean
+    except SceneError as e:
+        raise SystemExit(str(e)) from None
 
 
 def model(scene, spec: str, passes: int) -> dict:
