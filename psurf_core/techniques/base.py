@@ -379,16 +379,18 @@ def in_medium(scene: Scene, x: np.ndarray) -> np.ndarray:
     return inside_box(x, scene.medium.bounds_min, scene.medium.bounds_max)
 
 
-def segments_clear(blockers: Blockers, *pairs, ok: np.ndarray | None = None) -> np.ndarray:
+def segments_clear(blockers: Blockers, *pairs, ok: np.ndarray | None = None,
+                   known: np.ndarray | None = None) -> np.ndarray:
     """(H,) bool: every segment ``(a, b)`` given is unoccluded (one shadow test each).
 
     ``ok`` (H,) bool, optional: rows already known invalid (``False``) are not tested and stay
-    ``False``.
+    ``False``. ``known`` (H,) bool, optional: rows known clear (:mod:`.shadow_cull`) are not
+    tested either.
     """
     for a, b in pairs:
         if ok is None:
             ok = np.ones(a.shape[0], dtype=bool)
-        idx = np.flatnonzero(ok)
+        idx = np.flatnonzero(ok if known is None else ok & ~known)
         if idx.size:
             ok[idx] = ~blockers.occluded(a[idx], b[idx])
     return ok

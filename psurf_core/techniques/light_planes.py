@@ -57,6 +57,7 @@ from ..pdfs import MESH, position_pdfs
 from ..records import Vec, table
 from ..records import replace as set_field
 from . import grids
+from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
 from .bounds import wedge_hull
 from .single import sweep_bounds
@@ -79,6 +80,9 @@ class LPlaneGeometry(NamedTuple):
     T1: float
     p_ratio: float  # p(u,v) / p_kept
     beta: Vec  # beta_1^- (W)
+    clear0: float  # 1: no blocker can block segment x_K* -> x_{K-1}* of any hit (_clear)
+    clear1: float  # ... x_{K-1}* -> x_1* (K = 3)
+    clear2: float  # ... x_1* -> x0
 
 
 class LPlaneHit(NamedTuple):
@@ -155,11 +159,15 @@ def _pairs(G, x0, xl, xm, x1):
 
 
 def visibility(G, x0, hit, medium, blockers):
-    """(H,) bool: ``x_{K-1}*`` and ``x_1*`` in the box, and the rebuilt segments clear."""
+    """(H,) bool: ``x_{K-1}*`` and ``x_1*`` in the box, and the rebuilt segments clear (each
+    tested where its strip's ``clear`` flag does not already say so: :func:`_clear`)."""
     xl, xm, x1 = vertices(G, hit)
     ok = (inside_box(xm, medium.bounds_min, medium.bounds_max)
           & inside_box(x1, medium.bounds_min, medium.bounds_max))
-    return segments_clear(blockers, *_pairs(G, x0, xl, xm, x1), ok=ok)
+    for (a, b), known in zip(_pairs(G, x0, xl, xm, x1), (G.clear0, G.clear1, G.clear2),
+                             strict=True):
+        ok = segments_clear(blockers, (a, b), ok=ok, known=known != 0.0)
+    return ok
 
 
 @twin(visibility, inline=True)
@@ -167,17 +175,17 @@ def _visibility(G, x0, hit, medium, blockers):
     xl, xm, x1 = vertices(G, hit)
     if not inside_box(xm, medium.bounds_min, medium.bounds_max):
         return BLOCKED, CLEAR, CLEAR
-    st0 = status(xl, xm, blockers)
+    st0 = CLEAR if G.clear0 != 0.0 else status(xl, xm, blockers)
     if st0 == BLOCKED:
         return BLOCKED, CLEAR, CLEAR
     st1 = CLEAR
     if G.T2 > 0.0:
         if not inside_box(x1, medium.bounds_min, medium.bounds_max):
             return st0, BLOCKED, CLEAR
-        st1 = status(xm, x1, blockers)
+        st1 = CLEAR if G.clear1 != 0.0 else status(xm, x1, blockers)
         if st1 == BLOCKED:
             return st0, BLOCKED, CLEAR
-    return st0, st1, status(x1, x0, blockers)
+    return st0, st1, CLEAR if G.clear2 != 0.0 else status(x1, x0, blockers)
 
 
 def contribution(G, psi, s, s_min, hit, short, medium):
@@ -345,6 +353,36 @@ def surface_grid(G, short, far):
 
 
 # ------------------------------------------------------------------------- Create
+def _clear(blockers, scene, start, A, amax, wK, reach_p, reach_s, k3, d2, R, w2):
+    """(M,) float each: 1.0 where no blocker can block the rebuilt segments ``x_K* ->
+    x_{K-1}*``, ``x_{K-1}* -> x_1*``, ``x_1* -> x0`` of any of a strip's hits
+    (:mod:`.shadow_cull`), so its twins skip their tests.
+
+    The light points ``x_K*`` lie on the edge ``start + [0, amax] A``; the first scatterings
+    ``x_{K-1}*`` (inside the box) in the parallelogram ``P`` the edge sweeps along ``w_K``
+    out to ``reach_p``; the ``x_1*`` in ``P + d2`` (``d2 = T2 w2``; ``P`` at K = 2); the
+    ``x0`` in the strip, the edge moved by ``R`` and swept out to ``reach_s``. The first
+    segment leaves the light's plane along ``w_K`` (emission faces the front), the second
+    runs along ``w2`` from ``P`` to ``P + d2``, the third from ``P + d2`` to the strip. At K = 2 the
+    middle pair of :func:`segments` is the first again, and so is its flag."""
+    m = start.shape[0]
+    if blockers.bounds is None or blockers.planes is None:
+        return (np.zeros(m),) * 3
+    edge = np.stack([start, start + amax[:, None] * A], axis=1)  # (M, 2, 3)
+
+    def swept(e, reach):
+        return np.concatenate([e, e + (reach[:, None] * wK)[:, None]], axis=1)
+
+    P = swept(edge, reach_p)
+    P1, S = P + d2[:, None], swept(edge + R[:, None], reach_s)
+    c0 = cull.clear(cull.misses(blockers, P), cull.leaves(blockers, scene, edge, wK))
+    c1 = cull.clear(cull.misses(blockers, np.concatenate([P, P1], axis=1)),
+                    cull.leaves(blockers, scene, P, w2), cull.away(blockers, scene, P, P1))
+    c2 = cull.clear(cull.misses(blockers, np.concatenate([P1, S], axis=1)),
+                    cull.away(blockers, scene, P1, S))
+    return c0, np.where(k3, c1, c0), c2
+
+
 class LightPlane(Technique):
     """``plane-ut`` / ``plane-vt``: the strip swept by a light coordinate and the emission
     flight, the rest of the photon's path carried along (K = 2, 3).
@@ -416,9 +454,14 @@ class LightPlane(Technique):
         reach = TK if self.short else (box_reach(scene, org)
                                        + amax * np.linalg.norm(A, axis=1))
         hull = wedge_hull(scene, org, A, wK, amax, reach)
+        start = xL - a0[:, None] * A
+        reach_p = TK if self.short else (box_reach(scene, start)
+                                         + amax * np.linalg.norm(A, axis=1))
+        c0, c1, c2 = _clear(ctx.blockers, scene, start, A, amax, wK, reach_p, reach, k3,
+                            T2[:, None] * w2, R, w2)
         data = table(LPlaneGeometry, org=org, A=A, B=wK, amax=amax, TK=TK, a0=a0, xL=xL,
                      w2=w2, T2=T2, w1=w1, T1=T1, p_ratio=p_uv / p_kept,
-                     beta=beta1(paths, photon, K))
+                     beta=beta1(paths, photon, K), clear0=c0, clear1=c1, clear2=c2)
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
 
     def scaled_normal(self, rec):

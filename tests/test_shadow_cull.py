@@ -1,0 +1,117 @@
+"""The per-primitive shadow cull (``psurf_core.techniques.shadow_cull``) and the light strips'
+use of it: a segment a flag calls clear is one the full shadow test calls clear, on scenes
+whose blockers the strips' segments meet (the light itself, an occluder sphere and box, a
+second light in the first one's plane, a mesh light), and the cull does skip tests where it
+should (every first segment under a light facing down)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from small_scenes import TETRA, TILTED_AREA, TOP_AREA, make_scene
+
+from psurf_core.camera import camera_rays
+from psurf_core.geometry import blockers_of
+from psurf_core.scene import AreaLight, BoxOccluder, SphereOccluder
+from psurf_core.techniques import get_technique
+from psurf_core.techniques import shadow_cull as cull
+from psurf_core.techniques.base import PassContext
+from psurf_core.techniques.light_planes import segments
+from psurf_core.trace import trace
+
+#: Beside TOP_AREA, in its plane, facing down too.
+SIDE_AREA = AreaLight(corner=np.array([0.4, 0.95, -0.3]), edge_u=np.array([0.4, 0.0, 0.0]),
+                      edge_v=np.array([0.0, 0.0, 0.6]), radiance=np.array([1.0, 1.0, 1.0]))
+
+SCENES = {
+    "top": lambda k: make_scene((TOP_AREA,), kmin=k, kmax=k, size=(32, 24)),
+    "occluders": lambda k: make_scene(
+        (TOP_AREA,), (SphereOccluder(np.array([0.5, -0.2, 0.1]), 0.3),
+                      BoxOccluder(np.array([-0.9, -0.9, -0.9]), np.array([-0.6, -0.5, -0.6]))),
+        kmin=k, kmax=k, size=(32, 24)),
+    "coplanar": lambda k: make_scene((TOP_AREA, SIDE_AREA), kmin=k, kmax=k, size=(32, 24)),
+    "tilted_mesh": lambda k: make_scene((TILTED_AREA, TETRA), g=0.4, kmin=k, kmax=k,
+                                        size=(32, 24)),
+}
+
+
+def _flags_and_verdicts(scene, name, photons=400, seed=3):
+    """Per hit of technique ``name`` on one pass: its primitive's three ``clear`` flags and
+    the full test's verdict (True: blocked) on its three rebuilt segments."""
+    blockers = blockers_of(scene)
+    rng = np.random.default_rng(seed)
+    rays = camera_rays(scene, 1, rng, blockers=blockers)
+    paths = trace(scene, photons, rng, blockers=blockers)
+    tech = get_technique(name)
+    ctx = PassContext(scene, blockers)
+    prims = tech.create(paths, ctx)
+    from psurf_core.binning import candidate_pairs
+
+    flags, blocked = [], []
+    for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, 1 << 20):
+        hits = tech.intersect(prims, rays, ray, prim, ctx)
+        if not len(hits):
+            continue
+        G = prims.data[hits.prim]
+        x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
+        flags.append(np.stack([G.clear0, G.clear1, G.clear2], axis=1))
+        blocked.append(np.stack([blockers.occluded(a, b) for a, b in
+                                 segments(G, x0, hits.data)], axis=1))
+    return prims, np.concatenate(flags), np.concatenate(blocked)
+
+
+@pytest.mark.parametrize("key", sorted(SCENES))
+@pytest.mark.parametrize("k", [2, 3])
+@pytest.mark.parametrize("name", ["plane-ut-short", "plane-vt", "plane-vt-short"])
+def test_a_culled_segment_is_never_blocked(key, k, name):
+    prims, flags, blocked = _flags_and_verdicts(SCENES[key](k), name)
+    assert flags.shape[0] > 100
+    culled = flags != 0.0
+    assert not np.any(culled & blocked), "a segment the cull skipped is blocked"
+    # Enough of both kinds that the check means something.
+    assert blocked.any() and culled.any()
+
+
+def test_the_cull_skips_the_first_segment_under_a_light_facing_down():
+    """Every strip's first segment leaves the light's plane downwards and meets nothing else;
+    about half the last segments (those whose strip lies below the light) are skipped too."""
+    for k in (2, 3):
+        prims, flags, _ = _flags_and_verdicts(SCENES["top"](k), "plane-ut-short")
+        assert np.all(prims.data.clear0 == 1.0)
+        assert 0.3 < prims.data.clear2.mean() < 0.8
+    # An occluder in the way: some first segments are tested again.
+    prims, _, _ = _flags_and_verdicts(SCENES["occluders"](2), "plane-ut-short")
+    assert 0.1 < prims.data.clear0.mean() < 0.9
+
+
+class _Quad:
+    """A blocker table with one quad in the plane y = 0 (normal +y) and one box."""
+
+    bounds = np.array([[[-1.0, 0.0, -1.0], [1.0, 0.0, 1.0]], [[2.0, 2.0, 2.0], [3.0, 3.0, 3.0]]])
+    planes = np.array([[0.0, 2.0, 0.0, 0.0], [np.nan] * 4])
+
+
+class _Scene:
+    class medium:  # noqa: N801 - a stand-in for Scene.medium
+        bounds_min, bounds_max = -np.ones(3), np.ones(3)
+
+
+def test_leaves_away_and_misses_on_hand_made_geometry():
+    bl, sc = _Quad(), _Scene()
+    on = np.array([[[0.0, 0.0, 0.0], [0.5, 0.0, 0.0]]])  # on the plane
+    below = np.array([[[0.0, -0.5, 0.0], [0.5, -0.2, 0.3]]])
+    up, flat = np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]])
+    assert cull.leaves(bl, sc, on, -up)[0].tolist() == [True, False]
+    assert cull.leaves(bl, sc, on, up)[0].tolist() == [True, False]
+    assert cull.leaves(bl, sc, on, flat)[0].tolist() == [False, False]  # grazing
+    # From below the plane, upwards: it crosses.
+    assert cull.leaves(bl, sc, below, up)[0].tolist() == [False, False]
+    assert cull.away(bl, sc, on, below)[0].tolist() == [True, False]
+    assert cull.away(bl, sc, below, on)[0].tolist() == [False, False]  # ends on the plane
+    assert cull.away(bl, sc, below, below + 2 * up[:, None])[0].tolist() == [False, False]
+    assert cull.misses(bl, below)[0].tolist() == [True, True]
+    assert cull.misses(bl, below + 0.4 * up[:, None])[0].tolist() == [False, True]
+    # Every blocker needs a reason; one reason each suffices.
+    r1, r2 = np.array([[True, False]]), np.array([[False, True]])
+    assert cull.clear(r1).tolist() == [0.0]
+    assert cull.clear(r1, r2).tolist() == [1.0]
