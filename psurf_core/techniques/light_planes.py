@@ -80,7 +80,7 @@ class LPlaneGeometry(NamedTuple):
     T1: float
     p_ratio: float  # p(u,v) / p_kept
     beta: Vec  # beta_1^- (W)
-    clear0: float  # 1: no blocker can block segment x_K* -> x_{K-1}* of any hit (_clear)
+    clear0: float  # 1: no blocker can block x_K* -> x_{K-1}* of any hit (shadow_cull)
     clear1: float  # ... x_{K-1}* -> x_1* (K = 3)
     clear2: float  # ... x_1* -> x0
 
@@ -160,7 +160,8 @@ def _pairs(G, x0, xl, xm, x1):
 
 def visibility(G, x0, hit, medium, blockers):
     """(H,) bool: ``x_{K-1}*`` and ``x_1*`` in the box, and the rebuilt segments clear (each
-    tested where its strip's ``clear`` flag does not already say so: :func:`_clear`)."""
+    tested where its strip's ``clear`` flag does not already say so:
+    :func:`.shadow_cull.strip_clear`)."""
     xl, xm, x1 = vertices(G, hit)
     ok = (inside_box(xm, medium.bounds_min, medium.bounds_max)
           & inside_box(x1, medium.bounds_min, medium.bounds_max))
@@ -353,36 +354,6 @@ def surface_grid(G, short, far):
 
 
 # ------------------------------------------------------------------------- Create
-def _clear(blockers, scene, start, A, amax, wK, reach_p, reach_s, k3, d2, R, w2):
-    """(M,) float each: 1.0 where no blocker can block the rebuilt segments ``x_K* ->
-    x_{K-1}*``, ``x_{K-1}* -> x_1*``, ``x_1* -> x0`` of any of a strip's hits
-    (:mod:`.shadow_cull`), so its twins skip their tests.
-
-    The light points ``x_K*`` lie on the edge ``start + [0, amax] A``; the first scatterings
-    ``x_{K-1}*`` (inside the box) in the parallelogram ``P`` the edge sweeps along ``w_K``
-    out to ``reach_p``; the ``x_1*`` in ``P + d2`` (``d2 = T2 w2``; ``P`` at K = 2); the
-    ``x0`` in the strip, the edge moved by ``R`` and swept out to ``reach_s``. The first
-    segment leaves the light's plane along ``w_K`` (emission faces the front), the second
-    runs along ``w2`` from ``P`` to ``P + d2``, the third from ``P + d2`` to the strip. At K = 2 the
-    middle pair of :func:`segments` is the first again, and so is its flag."""
-    m = start.shape[0]
-    if blockers.bounds is None or blockers.planes is None:
-        return (np.zeros(m),) * 3
-    edge = np.stack([start, start + amax[:, None] * A], axis=1)  # (M, 2, 3)
-
-    def swept(e, reach):
-        return np.concatenate([e, e + (reach[:, None] * wK)[:, None]], axis=1)
-
-    P = swept(edge, reach_p)
-    P1, S = P + d2[:, None], swept(edge + R[:, None], reach_s)
-    c0 = cull.clear(cull.misses(blockers, P), cull.leaves(blockers, scene, edge, wK))
-    c1 = cull.clear(cull.misses(blockers, np.concatenate([P, P1], axis=1)),
-                    cull.leaves(blockers, scene, P, w2), cull.away(blockers, scene, P, P1))
-    c2 = cull.clear(cull.misses(blockers, np.concatenate([P1, S], axis=1)),
-                    cull.away(blockers, scene, P1, S))
-    return c0, np.where(k3, c1, c0), c2
-
-
 class LightPlane(Technique):
     """``plane-ut`` / ``plane-vt``: the strip swept by a light coordinate and the emission
     flight, the rest of the photon's path carried along (K = 2, 3).
@@ -457,7 +428,7 @@ class LightPlane(Technique):
         start = xL - a0[:, None] * A
         reach_p = TK if self.short else (box_reach(scene, start)
                                          + amax * np.linalg.norm(A, axis=1))
-        c0, c1, c2 = _clear(ctx.blockers, scene, start, A, amax, wK, reach_p, reach, k3,
+        c0, c1, c2 = cull.strip_clear(ctx.blockers, scene, start, A, amax, wK, reach_p, reach, k3,
                             T2[:, None] * w2, R, w2)
         data = table(LPlaneGeometry, org=org, A=A, B=wK, amax=amax, TK=TK, a0=a0, xL=xL,
                      w2=w2, T2=T2, w1=w1, T1=T1, p_ratio=p_uv / p_kept,

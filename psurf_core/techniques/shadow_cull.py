@@ -102,3 +102,33 @@ def clear(*reasons: np.ndarray) -> np.ndarray:
     for r in reasons:
         ok |= r
     return np.all(ok, axis=1).astype(float)
+
+
+def strip_clear(blockers, scene, start, A, amax, wK, reach_p, reach_s, k3, d2, R, w2):
+    """The three ``clear`` flags of light strips (:mod:`.light_planes`): (M,) float each, 1.0
+    where no blocker can block the rebuilt segments ``x_K* -> x_{K-1}*``, ``x_{K-1}* ->
+    x_1*``, ``x_1* -> x0`` of any of a strip's hits, so its twins skip their tests.
+
+    The light points ``x_K*`` lie on the edge ``start + [0, amax] A``; the first scatterings
+    ``x_{K-1}*`` (inside the box) in the parallelogram ``P`` the edge sweeps along ``w_K``
+    out to ``reach_p``; the ``x_1*`` in ``P + d2`` (``d2 = T2 w2``; ``P`` at K = 2); the
+    ``x0`` in the strip, the edge moved by ``R`` and swept out to ``reach_s``. The first
+    segment leaves the light's plane along ``w_K`` (emission faces the front), the second
+    runs along ``w2`` from ``P`` to ``P + d2``, the third from ``P + d2`` to the strip. At
+    K = 2 the middle pair of the strip's ``segments`` is the first again, and so is its
+    flag."""
+    m = start.shape[0]
+    if blockers.bounds is None or blockers.planes is None:
+        return (np.zeros(m),) * 3
+    edge = np.stack([start, start + amax[:, None] * A], axis=1)  # (M, 2, 3)
+
+    def swept(e, reach):
+        return np.concatenate([e, e + (reach[:, None] * wK)[:, None]], axis=1)
+
+    P = swept(edge, reach_p)
+    P1, S = P + d2[:, None], swept(edge + R[:, None], reach_s)
+    c0 = clear(misses(blockers, P), leaves(blockers, scene, edge, wK))
+    c1 = clear(misses(blockers, np.concatenate([P, P1], axis=1)),
+               leaves(blockers, scene, P, w2), away(blockers, scene, P, P1))
+    c2 = clear(misses(blockers, np.concatenate([P1, S], axis=1)), away(blockers, scene, P1, S))
+    return c0, np.where(k3, c1, c0), c2
