@@ -1,8 +1,8 @@
-"""The per-primitive shadow cull (``psurf_core.techniques.shadow_cull``) and the light strips'
-use of it: a segment a flag calls clear is one the full shadow test calls clear, on scenes
-whose blockers the strips' segments meet (the light itself, an occluder sphere and box, a
-second light in the first one's plane, a mesh light), and the cull does skip tests where it
-should (every first segment under a light facing down)."""
+"""The per-primitive shadow cull (``psurf_core.techniques.shadow_cull``) and its users, the
+light strips, photon planes and cylinders: a segment a flag calls clear is one the full shadow
+test calls clear, on scenes whose blockers their segments meet (the light itself, an occluder
+sphere and box, a second light in the first one's plane, a mesh light), and the cull does skip
+tests where it should (every strip's first segment under a light facing down)."""
 
 from __future__ import annotations
 
@@ -13,10 +13,9 @@ from small_scenes import TETRA, TILTED_AREA, TOP_AREA, make_scene
 from psurf_core.camera import camera_rays
 from psurf_core.geometry import blockers_of
 from psurf_core.scene import AreaLight, BoxOccluder, SphereOccluder
-from psurf_core.techniques import get_technique
+from psurf_core.techniques import cylinders, get_technique, light_planes, planes
 from psurf_core.techniques import shadow_cull as cull
 from psurf_core.techniques.base import PassContext
-from psurf_core.techniques.light_planes import segments
 from psurf_core.trace import trace
 
 #: Beside TOP_AREA, in its plane, facing down too.
@@ -35,18 +34,27 @@ SCENES = {
 }
 
 
+#: Per technique: its module (``segments``) and its primitives' flags, one per segment of
+#: ``segments`` (None: a segment the technique always tests).
+FLAGS = {name: (light_planes, ("clear0", "clear1", "clear2"))
+         for name in ("plane-ut-short", "plane-vt", "plane-vt-short")}
+FLAGS.update({name: (planes, (None, "clear")) for name in ("planes", "plane-t1t2")})
+FLAGS.update({name: (cylinders, (None, "clear")) for name in ("cylinder", "cylinder-short")})
+
+
 def _flags_and_verdicts(scene, name, photons=400, seed=3):
-    """Per hit of technique ``name`` on one pass: its primitive's three ``clear`` flags and
-    the full test's verdict (True: blocked) on its three rebuilt segments."""
+    """Per hit of technique ``name`` on one pass: its primitive's ``clear`` flags and the
+    full test's verdict (True: blocked) on the rebuilt segments they stand for."""
+    from psurf_core.binning import candidate_pairs
+
     blockers = blockers_of(scene)
     rng = np.random.default_rng(seed)
     rays = camera_rays(scene, 1, rng, blockers=blockers)
     paths = trace(scene, photons, rng, blockers=blockers)
     tech = get_technique(name)
+    module, names = FLAGS[name]
     ctx = PassContext(scene, blockers)
     prims = tech.create(paths, ctx)
-    from psurf_core.binning import candidate_pairs
-
     flags, blocked = [], []
     for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, 1 << 20):
         hits = tech.intersect(prims, rays, ray, prim, ctx)
@@ -54,22 +62,32 @@ def _flags_and_verdicts(scene, name, photons=400, seed=3):
             continue
         G = prims.data[hits.prim]
         x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
-        flags.append(np.stack([G.clear0, G.clear1, G.clear2], axis=1))
+        flags.append(np.stack([np.zeros(len(hits)) if f is None else G[f] for f in names],
+                              axis=1))
         blocked.append(np.stack([blockers.occluded(a, b) for a, b in
-                                 segments(G, x0, hits.data)], axis=1))
+                                 module.segments(G, x0, hits.data)], axis=1))
     return prims, np.concatenate(flags), np.concatenate(blocked)
 
 
 @pytest.mark.parametrize("key", sorted(SCENES))
 @pytest.mark.parametrize("k", [2, 3])
-@pytest.mark.parametrize("name", ["plane-ut-short", "plane-vt", "plane-vt-short"])
+@pytest.mark.parametrize("name", sorted(FLAGS))
 def test_a_culled_segment_is_never_blocked(key, k, name):
     prims, flags, blocked = _flags_and_verdicts(SCENES[key](k), name)
     assert flags.shape[0] > 100
     culled = flags != 0.0
+    assert culled.shape == blocked.shape
     assert not np.any(culled & blocked), "a segment the cull skipped is blocked"
-    # Enough of both kinds that the check means something.
-    assert blocked.any() and culled.any()
+    assert blocked.any()  # (that some are culled: the next test)
+
+
+@pytest.mark.parametrize("name", sorted(FLAGS))
+def test_every_user_skips_some_tests(name):
+    """Where an occluder and the light leave room (K = 3 beside a sphere and a box), every
+    user of the cull skips some of its segments' tests: the check above is not vacuous."""
+    _, flags, blocked = _flags_and_verdicts(SCENES["occluders"](3), name)
+    culled = flags != 0.0
+    assert 0.01 < culled.any(axis=1).mean() and not np.any(culled & blocked)
 
 
 def test_the_cull_skips_the_first_segment_under_a_light_facing_down():
@@ -98,8 +116,12 @@ class _Scene:
 
 def test_leaves_away_and_misses_on_hand_made_geometry():
     bl, sc = _Quad(), _Scene()
-    on = np.array([[[0.0, 0.0, 0.0], [0.5, 0.0, 0.0]]])  # on the plane
-    below = np.array([[[0.0, -0.5, 0.0], [0.5, -0.2, 0.3]]])
+
+    def pts(*xs):
+        return [np.array([x], float) for x in xs]
+
+    on = pts([0.0, 0.0, 0.0], [0.5, 0.0, 0.0])  # on the plane
+    below = pts([0.0, -0.5, 0.0], [0.5, -0.2, 0.3])
     up, flat = np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]])
     assert cull.leaves(bl, sc, on, -up)[0].tolist() == [True, False]
     assert cull.leaves(bl, sc, on, up)[0].tolist() == [True, False]
@@ -108,9 +130,10 @@ def test_leaves_away_and_misses_on_hand_made_geometry():
     assert cull.leaves(bl, sc, below, up)[0].tolist() == [False, False]
     assert cull.away(bl, sc, on, below)[0].tolist() == [True, False]
     assert cull.away(bl, sc, below, on)[0].tolist() == [False, False]  # ends on the plane
-    assert cull.away(bl, sc, below, below + 2 * up[:, None])[0].tolist() == [False, False]
+    assert cull.away(bl, sc, below, [x + 2 * up for x in below])[0].tolist() == [False, False]
     assert cull.misses(bl, below)[0].tolist() == [True, True]
-    assert cull.misses(bl, below + 0.4 * up[:, None])[0].tolist() == [False, True]
+    assert cull.misses(bl, [x + 0.4 * up for x in below])[0].tolist() == [False, True]
+    assert cull.misses(bl, pts([2.5, 2.5, 2.5]))[0].tolist() == [True, False]
     # Every blocker needs a reason; one reason each suffices.
     r1, r2 = np.array([[True, False]]), np.array([[False, True]])
     assert cull.clear(r1).tolist() == [0.0]

@@ -27,6 +27,7 @@ from ..kernels.vec import add, madd, scale, sub
 from ..path_record import with_t2, with_w1
 from ..records import Vec, table
 from . import grids
+from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, dot
 from .planes import segments, visibility  # the path x2 -> x1* = x2 + t2* w2 -> x0
 from .surface_common import (
@@ -58,6 +59,8 @@ class CylinderGeometry(NamedTuple):
     T2: float  # the photon's flight from x2
     own: float  # 1: segment x2 -> x1 is the photon's own, clear for t2 < T2 (own_segment)
     beta: Vec  # beta_1^- (W)
+    clear: float  # 1: no blocker can block x1* -> x0 of any hit (shadow_cull.hull_clear of
+    # the footprint's rings and the axis from x2: x0 on the surface, x1* on the axis)
 
 
 class CylinderHit(NamedTuple):
@@ -211,7 +214,10 @@ class PhotonCylinder(Technique):
                                 ring(x2 + h1[:, None] * w2, w2, T1 * s1)], axis=1)
         return Primitives(self.name, photon, K, lo, hi, cloud=cloud, data=table(
             CylinderGeometry, x2=x2, w2=w2, c1=c1, s1=s1, T1=T1, T2=g["T2"],
-            own=own_segment(paths, photon, K - 1, x2, ctx.scene), beta=beta1(paths, photon, K)))
+            own=own_segment(paths, photon, K - 1, x2, ctx.scene), beta=beta1(paths, photon, K),
+            clear=cull.hull_clear(ctx.blockers, ctx.scene, [
+                *(cloud[:, i] for i in range(cloud.shape[1])), x2,
+                x2 + (g["T2"] if self.short else h1)[:, None] * w2])))
 
     def scaled_normal(self, rec):
         """(H, 3) scaled normal on records ``rec`` (the inspector's)."""

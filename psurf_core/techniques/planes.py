@@ -35,6 +35,7 @@ from ..kernels.vec import madd, sub
 from ..path_record import with_t1, with_t2
 from ..records import Vec, table
 from . import grids
+from . import shadow_cull as cull
 from .base import (
     Compiled,
     Primitives,
@@ -69,6 +70,7 @@ class PlaneGeometry(NamedTuple):
     m1: Vec
     m2: Vec
     sdet: float
+    clear: float  # 1: no blocker can block x1* -> x0 of any hit (shadow_cull.plane_clear)
 
 
 class PlaneHit(NamedTuple):
@@ -152,10 +154,11 @@ def segments(G, x0, hit):
 
 def visibility(G, x0, hit, medium, blockers):
     """(H,) bool: ``x2 -> x1*`` counts (own segment, or ``x1*`` in the box and clear) and
-    ``x1* -> x0`` is unoccluded."""
+    ``x1* -> x0`` is unoccluded (tested where the plane's ``clear`` flag does not already say
+    so)."""
     x1 = G.x2 + hit.t2[:, None] * G.w2
     known = (G.own != 0.0) & (hit.t2 < G.T2)
-    return segments_clear(blockers, (x1, x0),
+    return segments_clear(blockers, (x1, x0), known=G.clear != 0.0,
                           ok=rebuilt_clear(G.x2, x1, known, medium, blockers))
 
 
@@ -163,7 +166,7 @@ def visibility(G, x0, hit, medium, blockers):
 def _visibility(G, x0, hit, medium, blockers):
     x1 = madd(G.x2, hit.t2, G.w2)
     st0 = rebuilt_clear(G.x2, x1, G.own != 0.0 and hit.t2 < G.T2, medium, blockers)
-    st1 = CLEAR if st0 == BLOCKED else status(x1, x0, blockers)
+    st1 = CLEAR if st0 == BLOCKED or G.clear != 0.0 else status(x1, x0, blockers)
     return st0, st1, CLEAR
 
 
@@ -277,9 +280,14 @@ class PhotonPlane(Technique):
                 else wedge_hull(scene, x2, w2, w1))
         eye = np.broadcast_to(np.asarray(scene.camera.position, float), x2.shape)
         m0, m1, m2, sdet = solver(x2, w2, w1, eye)
+        # Long: x1* and x0 in the box, so t2* and t1* are at most its diagonal.
+        diag = np.full(x2.shape[0], np.linalg.norm(scene.medium.bounds_max
+                                                    - scene.medium.bounds_min))
+        reach = (T2, T1) if self.short else (diag, diag)
         data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1,
                      own=own_segment(paths, photon, K - 1, x2, scene),
-                     beta=beta1(paths, photon, K), origin=eye, m0=m0, m1=m1, m2=m2, sdet=sdet)
+                     beta=beta1(paths, photon, K), origin=eye, m0=m0, m1=m1, m2=m2, sdet=sdet,
+                     clear=cull.plane_clear(ctx.blockers, scene, x2, w2, w1, *reach))
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
 
     def scaled_normal(self, rec):

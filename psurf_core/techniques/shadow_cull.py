@@ -44,55 +44,64 @@ def _scale(scene) -> float:
     return float(max(np.linalg.norm(hi - lo), np.abs(lo).max(), np.abs(hi).max()))
 
 
-def misses(blockers, points: np.ndarray) -> np.ndarray:
-    """(M, N) bool: the box of ``points`` (M, V, 3), padded by ``BOUNDS_PAD``, misses blocker
-    ``j``'s box padded by ``BOUNDS_PAD`` (``Blockers.bounds``)."""
-    lo = points.min(axis=1) - BOUNDS_PAD
-    hi = points.max(axis=1) + BOUNDS_PAD
+def misses(blockers, points) -> np.ndarray:
+    """(M, N) bool: the box of ``points`` (a sequence of (M, 3) arrays: each primitive's
+    region is their hull), padded by ``BOUNDS_PAD``, misses blocker ``j``'s box padded by
+    ``BOUNDS_PAD`` (``Blockers.bounds``)."""
+    lo = np.minimum.reduce(points) - BOUNDS_PAD
+    hi = np.maximum.reduce(points) + BOUNDS_PAD
     blo = blockers.bounds[:, 0] - BOUNDS_PAD
     bhi = blockers.bounds[:, 1] + BOUNDS_PAD
-    meet = np.all((lo[:, None] <= bhi[None]) & (hi[:, None] >= blo[None]), axis=2)
-    return ~meet
+    out = np.zeros((lo.shape[0], blo.shape[0]), dtype=bool)
+    for k in range(3):  # (a loop over 3 axes: no (M, N, 3) temporaries)
+        out |= (lo[:, k, None] > bhi[None, :, k]) | (hi[:, k, None] < blo[None, :, k])
+    return out
 
 
-def heights(blockers, points: np.ndarray) -> np.ndarray:
-    """(M, V, N) signed distance of each point to each blocker's plane (quads; NaN for the
-    others): ``x . n / |n| - c / |n|`` for ``Blockers.planes`` rows ``(n, c)``."""
+def _planes(blockers):
+    """Unit normals (N, 3) and offsets (N,) of the blockers' planes (NaN: not a quad)."""
     pl = blockers.planes
     n = np.linalg.norm(pl[:, :3], axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        unit, off = pl[:, :3] / n[:, None], pl[:, 3] / n
-    return points @ unit.T - off
+        return pl[:, :3] / n[:, None], pl[:, 3] / n
 
 
-def leaves(blockers, scene, start: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    """(M, N) bool: segments starting in the hull of ``start`` (M, V, 3) along the fixed
-    ``direction`` (M, 3) cannot be blocked by quad ``j``: every start point is on one closed
-    side of its plane (within ``TOUCH``) and the direction moves away from it (cosine at
-    least ``LEAVE_COS``). False for blockers that are not quads."""
-    L = _scale(scene)
-    h = heights(blockers, start)  # (M, V, N)
-    pl = blockers.planes
-    n = np.linalg.norm(pl[:, :3], axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cos = direction @ (pl[:, :3] / n[:, None]).T  # (M, N)
-        up = (cos >= LEAVE_COS) & np.all(h >= -TOUCH * L, axis=1)
-        down = (cos <= -LEAVE_COS) & np.all(h <= TOUCH * L, axis=1)
-    return up | down
-
-
-def away(blockers, scene, start: np.ndarray, end: np.ndarray) -> np.ndarray:
-    """(M, N) bool: segments from the hull of ``start`` (M, V, 3) to the hull of ``end``
-    (M, W, 3) cannot be blocked by quad ``j``: every start point is on one closed side of its
-    plane (within ``TOUCH``) and every end point strictly (``SIDE``) on the same side, so a
-    segment can cross the plane only within ``TOUCH / SIDE`` of its length from its start.
-    False for blockers that are not quads."""
-    L = _scale(scene)
-    hs, he = heights(blockers, start), heights(blockers, end)
+def _sides(blockers, points, tol):
+    """(M, N) bool each: every point (a sequence of (M, 3) arrays) at a signed distance of
+    at least ``tol`` above, or at least ``tol`` below, quad ``j``'s plane (False for other
+    blockers)."""
+    unit, off = _planes(blockers)
+    up = down = None
     with np.errstate(invalid="ignore"):
-        up = np.all(hs >= -TOUCH * L, axis=1) & np.all(he >= SIDE * L, axis=1)
-        down = np.all(hs <= TOUCH * L, axis=1) & np.all(he <= -SIDE * L, axis=1)
-    return up | down
+        for x in points:
+            h = x @ unit.T - off
+            u, d = h >= tol, h <= -tol
+            up, down = (u, d) if up is None else (up & u, down & d)
+    return up, down
+
+
+def leaves(blockers, scene, start, direction: np.ndarray) -> np.ndarray:
+    """(M, N) bool: segments starting in the hull of ``start`` (a sequence of (M, 3) arrays)
+    along the fixed ``direction`` (M, 3) cannot be blocked by quad ``j``: every start point
+    is on one closed side of its plane (within ``TOUCH``) and the direction moves away from
+    it (cosine at least ``LEAVE_COS``). False for blockers that are not quads."""
+    up, down = _sides(blockers, start, -TOUCH * _scale(scene))
+    unit, _ = _planes(blockers)
+    with np.errstate(invalid="ignore"):
+        cos = direction @ unit.T  # (M, N)
+        return (up & (cos >= LEAVE_COS)) | (down & (cos <= -LEAVE_COS))
+
+
+def away(blockers, scene, start, end) -> np.ndarray:
+    """(M, N) bool: segments from the hull of ``start`` to the hull of ``end`` (sequences of
+    (M, 3) arrays) cannot be blocked by quad ``j``: every start point is on one closed side
+    of its plane (within ``TOUCH``) and every end point strictly (``SIDE``) on the same side,
+    so a segment can cross the plane only within ``TOUCH / SIDE`` of its length from its
+    start. False for blockers that are not quads."""
+    L = _scale(scene)
+    su, sd = _sides(blockers, start, -TOUCH * L)
+    eu, ed = _sides(blockers, end, SIDE * L)
+    return (su & eu) | (sd & ed)
 
 
 def clear(*reasons: np.ndarray) -> np.ndarray:
@@ -102,6 +111,28 @@ def clear(*reasons: np.ndarray) -> np.ndarray:
     for r in reasons:
         ok |= r
     return np.all(ok, axis=1).astype(float)
+
+
+def hull_clear(blockers, scene, points) -> np.ndarray:
+    """(M,) float: 1.0 where no blocker can block a segment between two points of the hull of
+    ``points`` (a sequence of (M, 3) arrays): every blocker's box is apart, or its plane has
+    them all strictly on one side (cylinders: points holding their surface and their axis)."""
+    if blockers.bounds is None or blockers.planes is None:
+        return np.zeros(points[0].shape[0])
+    return clear(misses(blockers, points), away(blockers, scene, points, points))
+
+
+def plane_clear(blockers, scene, x2, w2, w1, reach2, reach1) -> np.ndarray:
+    """The ``clear`` flag of photon planes (:mod:`.planes`): (M,) float, 1.0 where no blocker
+    can block the segment ``x1* -> x0`` of any of a plane's hits. ``x1*`` lies on the edge
+    ``x2 + [0, reach2] w2``, and the segment runs from it along the fixed ``w1`` (out to
+    ``reach1``), inside the parallelogram the two span."""
+    if blockers.bounds is None or blockers.planes is None:
+        return np.zeros(x2.shape[0])
+    edge = [x2, x2 + reach2[:, None] * w2]
+    par = edge + [e + reach1[:, None] * w1 for e in edge]
+    return clear(misses(blockers, par), leaves(blockers, scene, edge, w1),
+                 away(blockers, scene, edge, par))
 
 
 def strip_clear(blockers, scene, start, A, amax, wK, reach_p, reach_s, k3, d2, R, w2):
@@ -120,15 +151,15 @@ def strip_clear(blockers, scene, start, A, amax, wK, reach_p, reach_s, k3, d2, R
     m = start.shape[0]
     if blockers.bounds is None or blockers.planes is None:
         return (np.zeros(m),) * 3
-    edge = np.stack([start, start + amax[:, None] * A], axis=1)  # (M, 2, 3)
+    edge = [start, start + amax[:, None] * A]
 
     def swept(e, reach):
-        return np.concatenate([e, e + (reach[:, None] * wK)[:, None]], axis=1)
+        return e + [x + reach[:, None] * wK for x in e]
 
     P = swept(edge, reach_p)
-    P1, S = P + d2[:, None], swept(edge + R[:, None], reach_s)
+    P1, S = [x + d2 for x in P], swept([x + R for x in edge], reach_s)
     c0 = clear(misses(blockers, P), leaves(blockers, scene, edge, wK))
-    c1 = clear(misses(blockers, np.concatenate([P, P1], axis=1)),
-               leaves(blockers, scene, P, w2), away(blockers, scene, P, P1))
-    c2 = clear(misses(blockers, np.concatenate([P1, S], axis=1)), away(blockers, scene, P1, S))
+    c1 = clear(misses(blockers, P + P1), leaves(blockers, scene, P, w2),
+               away(blockers, scene, P, P1))
+    c2 = clear(misses(blockers, P1 + S), away(blockers, scene, P1, S))
     return c0, np.where(k3, c1, c0), c2
