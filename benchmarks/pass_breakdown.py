@@ -21,7 +21,9 @@ sweeps every photon, as in ``stages.py``), it prints:
   process (the order rotated each round), so that load drift hits every variant alike. The
   hits are the same in every variant (ablation changes only the work per hit; it is checked).
   Without the statuses, a hit they would have blocked is shaded (and MIS-weighted) like any
-  other, so ``novis`` understates the saving where many hits are blocked;
+  other, so ``novis`` understates the saving where many hits are blocked. Per technique of
+  the spec it also prints the walker's CPU ns a hit and the shares of its shadow statuses and
+  contribution (each technique's own walk in its set);
 * ``--scaling``: the walker's wall ms on 1 and on 2 numba threads (alternating rounds) and
   their ratio. A chunk goes to threads only from ``fused.THREADED_MIN_PAIRS`` candidate
   pairs, and ``threads.thread_count`` uses no more threads than other processes leave cores
@@ -35,7 +37,10 @@ Usage::
 
     python benchmarks/pass_breakdown.py SCENE.toml [--spec planes] [--photons 5000]
         [--rounds 6] [--threads 1] [--ablate] [--scaling] [--no-load-cap] [--json PATH]
+        [--scatter KMIN KMAX] [--resolution W,H]
     python benchmarks/pass_breakdown.py scenes/area.toml --ablate
+    python benchmarks/pass_breakdown.py scenes/study_medium.toml --scatter 2 3 \
+        --resolution 256,192 --spec "mis:planes+plane-ut-short+cone-short" --photons 900 --ablate
     python benchmarks/pass_breakdown.py scenes/point.toml --scaling
 
 Not a test: the times move with the machine's load; compare figures of one run.
@@ -69,6 +74,7 @@ from psurf_core.scene_io import load_scene  # noqa: E402
 from psurf_core.techniques import UnknownTechnique  # noqa: E402
 from psurf_core.techniques.base import PassContext  # noqa: E402
 from psurf_core.trace import trace  # noqa: E402
+from ui.cli.common import add_resolution_flag, with_resolution  # noqa: E402
 
 #: The walker variants of ``--ablate``, in the order of the first round.
 VARIANTS = ("base", "novis", "nocontrib", "neither")
@@ -229,12 +235,19 @@ def _alternating(jobs, rounds: int, keys, setup) -> dict:
     """``run_pass`` per key in each round, the order rotated every round, under ``setup(key)``
     (a context manager): per key the :func:`_ms` of its whole pass (every technique)."""
     runs: dict = {k: [] for k in keys}
+    each: dict = {k: {} for k in keys}
     for r in range(rounds):
         order = list(keys[r % len(keys):]) + list(keys[:r % len(keys)])
         for k in order:
             with setup(k):
-                runs[k].append(_total(run_pass(jobs)))
-    return {k: _ms(v) for k, v in runs.items()}
+                res = run_pass(jobs)
+            runs[k].append(_total(res))
+            for name, st in res.items():
+                each[k].setdefault(name, []).append(st)
+    out = {k: _ms(v) for k, v in runs.items()}
+    for k in keys:  # per technique too (its own pass in the set)
+        out[k]["techniques"] = {name: _ms(v) for name, v in each[k].items()}
+    return out
 
 
 def ablate(jobs, rounds: int) -> dict:
@@ -309,6 +322,17 @@ def report(res: dict) -> None:
         print("CPU ms per pass: " + ", ".join(
             f"{k} {m['pass_cpu_ms']:.1f} ({m['pass_cpu_ms'] - base:+.1f})"
             for k, m in res["ablate"].items()))
+        print("walker CPU ns a hit, per technique (in its set): base, and what its shadow "
+              "statuses (base - novis) and its contribution (base - nocontrib) cost")
+        ab = res["ablate"]
+        for name, m in ab["base"]["techniques"].items():
+            h = max(m["hits"], 1)
+
+            def ns(v, name=name, h=h):
+                return 1e6 * ab[v]["techniques"][name]["walker_cpu_ms"] / h
+
+            print(f"  {name:<22} {ns('base'):6.1f}  shadow {ns('base') - ns('novis'):5.1f}  "
+                  f"contribution {ns('base') - ns('nocontrib'):5.1f}")
     if "scaling" in res:
         s = res["scaling"]
         print("\n# --scaling: numba on 1 and 2 threads, alternating rounds")
@@ -324,7 +348,9 @@ def report(res: dict) -> None:
 
 def measure(args) -> dict:
     """Every table ``args`` asks for (see the module docstring), as a dict."""
-    scene = load_scene(args.scene)
+    scene = with_resolution(load_scene(args.scene), args.resolution)
+    if args.scatter is not None:
+        scene = scene.with_scatter(*args.scatter)
     jobs = prepare(scene, args.spec, args.photons)
     numba.set_num_threads(args.threads)
     res = {"scene": args.scene, "spec": args.spec, "photons": args.photons,
@@ -351,6 +377,9 @@ def main(argv=None) -> int:
     ap.add_argument("--no-load-cap", action="store_true",
                     help="chunks use numba's thread count whatever other processes use")
     ap.add_argument("--json", metavar="PATH")
+    ap.add_argument("--scatter", type=int, nargs=2, metavar=("KMIN", "KMAX"),
+                    help="the scatter range (default: the scene's)")
+    add_resolution_flag(ap)
     args = ap.parse_args(argv)
     threads_before = numba.get_num_threads()
     try:
