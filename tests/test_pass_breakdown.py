@@ -31,7 +31,9 @@ def test_tables_and_ablated_hits(tmp_path, capsys):
     rc = pass_breakdown.main([str(ROOT / "scenes" / "point.toml"), "--photons", "300",
                               "--rounds", "2", "--ablate", "--scaling", "--json", str(out)])
     assert rc == 0
-    assert "hits: the same in every variant and round" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "hits: the same in every variant and round" in printed
+    assert "walker CPU ns a hit, per technique" in printed
     res = json.loads(out.read_text())
     assert set(res["breakdown"]) == {"plane-t1t2-short", "total"}
     assert set(res["ablate"]) == set(pass_breakdown.VARIANTS)
@@ -39,7 +41,11 @@ def test_tables_and_ablated_hits(tmp_path, capsys):
     rows = [*res["breakdown"].values(), *res["ablate"].values(), res["scaling"]["1"],
             res["scaling"]["2"]]
     for row in rows:
-        assert set(row) == ROW_KEYS
+        assert set(row) - {"techniques"} == ROW_KEYS
+    for row in [*res["ablate"].values(), res["scaling"]["1"], res["scaling"]["2"]]:
+        # each variant's pass, technique by technique too
+        assert set(row["techniques"]) == {"plane-t1t2-short"}
+        assert set(row["techniques"]["plane-t1t2-short"]) == ROW_KEYS
         assert all(math.isfinite(row[k]) and row[k] >= 0 for k in ROW_KEYS
                    if k.endswith("_ms") and k != "other_ms")
     base = res["breakdown"]["total"]
