@@ -428,8 +428,8 @@ class LightPlane(Technique):
         start = xL - a0[:, None] * A
         reach_p = TK if self.short else (box_reach(scene, start)
                                          + amax * np.linalg.norm(A, axis=1))
-        c0, c1, c2 = cull.strip_clear(ctx.blockers, scene, start, A, amax, wK, reach_p, reach, k3,
-                            T2[:, None] * w2, R, w2)
+        c0, c1, c2 = cull.strip_clear(ctx.blockers, scene, start, A, amax, wK, reach_p,
+                                      reach, k3, T2[:, None] * w2, R, w2)
         data = table(LPlaneGeometry, org=org, A=A, B=wK, amax=amax, TK=TK, a0=a0, xL=xL,
                      w2=w2, T2=T2, w1=w1, T1=T1, p_ratio=p_uv / p_kept,
                      beta=beta1(paths, photon, K), clear0=c0, clear1=c1, clear2=c2)

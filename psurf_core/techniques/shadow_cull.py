@@ -29,9 +29,9 @@ import numpy as np
 
 from ..constants import BOUNDS_PAD
 
-#: A point this close to a quad's plane (times the medium box's diagonal) lies on it.
+#: A point this close to a quad's plane (times the scene's scale, :func:`_scale`) lies on it.
 TOUCH = 1e-13
-#: Points this far on one side of a plane (times the diagonal) are strictly on that side.
+#: Points this far on one side of a plane (times the scale) are strictly on that side.
 SIDE = 1e-4
 #: A direction leaves a plane when the cosine of its angle to the normal is at least this.
 LEAVE_COS = 1e-5
