@@ -86,7 +86,7 @@ def test_random_parallelograms_conservative():
 
     eye = np.broadcast_to(scene.camera.position, x2.shape)
     m0, m1, m2, sdet = solver(x2, w2, w1, eye)
-    data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1, own=0.0, beta=1.0,
+    data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1, own=0.0, beta=1.0, clear=0.0,
                  origin=eye, m0=m0, m1=m1, m2=m2, sdet=sdet)
     prims = Primitives("planes", np.zeros(m, np.int64), np.full(m, 2), lo, hi, data,
                        hull=wedge_hull(scene, x2, w2, w1, T2, T1))
