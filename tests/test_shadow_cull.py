@@ -9,13 +9,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from small_scenes import TETRA, TILTED_AREA, TOP_AREA, make_scene
+from test_photon_surfaces_multi_forms import all_hits
 
 from psurf_core.camera import camera_rays
 from psurf_core.geometry import blockers_of
 from psurf_core.scene import AreaLight, BoxOccluder, SphereOccluder
 from psurf_core.techniques import cylinders, get_technique, light_planes, planes
 from psurf_core.techniques import shadow_cull as cull
-from psurf_core.techniques.base import PassContext
 from psurf_core.trace import trace
 
 #: Beside TOP_AREA, in its plane, facing down too.
@@ -45,21 +45,13 @@ FLAGS.update({name: (cylinders, (None, "clear")) for name in ("cylinder", "cylin
 def _flags_and_verdicts(scene, name, photons=400, seed=3):
     """Per hit of technique ``name`` on one pass: its primitive's ``clear`` flags and the
     full test's verdict (True: blocked) on the rebuilt segments they stand for."""
-    from psurf_core.binning import candidate_pairs
-
-    blockers = blockers_of(scene)
     rng = np.random.default_rng(seed)
+    blockers = blockers_of(scene)
     rays = camera_rays(scene, 1, rng, blockers=blockers)
     paths = trace(scene, photons, rng, blockers=blockers)
-    tech = get_technique(name)
     module, names = FLAGS[name]
-    ctx = PassContext(scene, blockers)
-    prims = tech.create(paths, ctx)
-    flags, blocked = [], []
-    for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, 1 << 20):
-        hits = tech.intersect(prims, rays, ray, prim, ctx)
-        if not len(hits):
-            continue
+    flags, blocked, prims = [], [], None
+    for hits, prims, _, _, _ in all_hits(get_technique(name), scene, paths, rays):
         G = prims.data[hits.prim]
         x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
         flags.append(np.stack([np.zeros(len(hits)) if f is None else G[f] for f in names],

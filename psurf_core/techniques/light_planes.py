@@ -422,12 +422,12 @@ class LightPlane(Technique):
         lo, hi = clip_bounds(scene, lo, hi)
         # Points of a long strip inside the box lie within the box's reach of org plus the
         # edge: a parallelogram that long holds them.
-        reach = TK if self.short else (box_reach(scene, org)
-                                       + amax * np.linalg.norm(A, axis=1))
+        edge = amax * np.linalg.norm(A, axis=1)
+        reach = TK if self.short else box_reach(scene, org) + edge
         hull = wedge_hull(scene, org, A, wK, amax, reach)
+        # The first scatterings x_{K-1}* lie as far from the light edge (from start).
         start = xL - a0[:, None] * A
-        reach_p = TK if self.short else (box_reach(scene, start)
-                                         + amax * np.linalg.norm(A, axis=1))
+        reach_p = TK if self.short else box_reach(scene, start) + edge
         c0, c1, c2 = cull.strip_clear(ctx.blockers, scene, start, A, amax, wK, reach_p,
                                       reach, k3, T2[:, None] * w2, R, w2)
         data = table(LPlaneGeometry, org=org, A=A, B=wK, amax=amax, TK=TK, a0=a0, xL=xL,

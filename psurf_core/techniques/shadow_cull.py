@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..constants import BOUNDS_PAD
+from ..memo import memo
 
 #: A point this close to a quad's plane (times the scene's scale, :func:`_scale`) lies on it.
 TOUCH = 1e-13
@@ -59,11 +60,15 @@ def misses(blockers, points) -> np.ndarray:
 
 
 def _planes(blockers):
-    """Unit normals (N, 3) and offsets (N,) of the blockers' planes (NaN: not a quad)."""
-    pl = blockers.planes
-    n = np.linalg.norm(pl[:, :3], axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return pl[:, :3] / n[:, None], pl[:, 3] / n
+    """Unit normals (N, 3) and offsets (N,) of the blockers' planes (NaN: not a quad), built
+    once per ``blockers``."""
+    def build():
+        pl = blockers.planes
+        n = np.linalg.norm(pl[:, :3], axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return pl[:, :3] / n[:, None], pl[:, 3] / n
+
+    return memo(blockers, "unit planes", build)
 
 
 def _sides(blockers, points, tol):
