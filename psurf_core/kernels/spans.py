@@ -8,44 +8,18 @@ the primitive's screen rectangle (:func:`_screen_rects`, :func:`_row_spans_into`
 primitives are cut into pieces for threads (:mod:`.threads`); the spans are the same for any
 thread count. The walkers (:mod:`.walk`) visit these spans.
 
-The camera is passed as a :class:`CameraRow` record."""
+The camera is passed as a :class:`~.projection.CameraRow` record."""
 
 from __future__ import annotations
-
-from typing import NamedTuple
 
 import numpy as np
 
 from ..binning import _NEAR, _SPAN_MARGIN, screen_rects
 from ..memo import memo
-from ..records import Vec
+from .cloud_spans import cloud_project, max_points
 from .jit import kernel, scalar
+from .projection import _project, _row_range, camera_row
 from .threads import PIECES_PER_THREAD, on_threads, thread_count
-
-
-class CameraRow(NamedTuple):
-    """What the compiled projection reads of a camera (:func:`camera_row`)."""
-
-    position: Vec
-    forward: Vec
-    right: Vec
-    image_up: Vec
-    tan_half: float  # tan(fov_y / 2)
-    aspect: float  # width / height
-    width: float  # pixels
-    height: float
-
-
-@scalar
-def _project(x, y, z, cam):
-    """``camera.project`` of one point (``cam``: :class:`CameraRow`)."""
-    vx, vy, vz = x - cam.position[0], y - cam.position[1], z - cam.position[2]
-    depth = vx * cam.forward[0] + vy * cam.forward[1] + vz * cam.forward[2]
-    u = ((vx * cam.right[0] + vy * cam.right[1] + vz * cam.right[2])
-         / (depth * cam.tan_half * cam.aspect))
-    w = (vx * cam.image_up[0] + vy * cam.image_up[1] + vz * cam.image_up[2]) / (
-        depth * cam.tan_half)
-    return (u + 1.0) * 0.5 * cam.width, (1.0 - w) * 0.5 * cam.height, depth
 
 
 @scalar
@@ -184,81 +158,6 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
     return px, py, count, r0, nr
 
 
-@scalar
-def _row_range(ymin, ymax, y0, y1):
-    """First row and number of rows of a polygon spanning ``[ymin, ymax]`` (with the span
-    margin), within the image rows ``[y0, y1)``."""
-    lo = max(np.floor(ymin - _SPAN_MARGIN), y0)
-    hi = min(np.floor(ymax + _SPAN_MARGIN) + 1, y1)
-    return int(lo), max(int(hi) - int(lo), 0)
-
-
-@scalar
-def _cross2(ox, oy, ax, ay, bx, by):
-    return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox)
-
-
-@kernel(nogil=True)
-def _cloud_project(cloud, live, near, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
-    """:func:`_clip_project` for point clouds: per primitive, the convex hull (Andrew's
-    monotone chain, counter-clockwise) of its points projected to pixels; its projection
-    contains the projection of any surface inside the points' 3D convex hull. A cloud with
-    a point that is not finite or not in front of the near plane (``near``: ``(n, offset)``)
-    gets its rectangle's rows and ``count = -1``."""
-    m, v = cloud.shape[0], cloud.shape[1]
-    px = np.zeros((m, 2 * v))
-    py = np.zeros((m, 2 * v))
-    count = np.zeros(m, np.int64)
-    r0 = np.zeros(m, np.int64)
-    nr = np.zeros(m, np.int64)
-    qx = np.empty(v)
-    qy = np.empty(v)
-    for i in range(m):
-        if not live[i]:
-            continue
-        ok = True
-        for j in range(v):
-            d = (cloud[i, j, 0] * near[0] + cloud[i, j, 1] * near[1] + cloud[i, j, 2] * near[2]
-                 - near[3])
-            if not (d >= 0.0 and np.isfinite(cloud[i, j, 0]) and np.isfinite(cloud[i, j, 1])
-                    and np.isfinite(cloud[i, j, 2])):
-                ok = False
-        if not ok:
-            count[i] = -1
-            r0[i] = y0[i]
-            nr[i] = y1[i] - y0[i]
-            continue
-        for j in range(v):  # project, then insertion-sort by (x, y): v is small
-            x, y, _ = _project(cloud[i, j, 0], cloud[i, j, 1], cloud[i, j, 2], cam)
-            k = j
-            while k > 0 and (qx[k - 1] > x or (qx[k - 1] == x and qy[k - 1] > y)):
-                qx[k], qy[k] = qx[k - 1], qy[k - 1]
-                k -= 1
-            qx[k], qy[k] = x, y
-        n = 0
-        for j in range(v):  # lower hull
-            while n >= 2 and _cross2(px[i, n - 2], py[i, n - 2], px[i, n - 1], py[i, n - 1],
-                                     qx[j], qy[j]) <= 0.0:
-                n -= 1
-            px[i, n], py[i, n] = qx[j], qy[j]
-            n += 1
-        lower = n + 1
-        for j in range(v - 2, -1, -1):  # upper hull
-            while n >= lower and _cross2(px[i, n - 2], py[i, n - 2], px[i, n - 1],
-                                         py[i, n - 1], qx[j], qy[j]) <= 0.0:
-                n -= 1
-            px[i, n], py[i, n] = qx[j], qy[j]
-            n += 1
-        n = max(n - 1, 1)  # the last point repeats the first
-        count[i] = n
-        ymin, ymax = np.inf, -np.inf
-        for j in range(n):
-            ymin = min(ymin, py[i, j])
-            ymax = max(ymax, py[i, j])
-        r0[i], nr[i] = _row_range(ymin, ymax, y0[i], y1[i])
-    return px, py, count, r0, nr
-
-
 @kernel(nogil=True)
 def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - compiled
     """Per-row column spans ``[c0, c1)`` of the projected polygons of :func:`_clip_project`
@@ -329,21 +228,6 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
     return n
 
 
-def camera_row(cam) -> CameraRow:
-    """The :class:`CameraRow` of a :class:`~psurf_core.scene.Camera` (built once per
-    camera)."""
-
-    def build():
-        def v(a):
-            return tuple(float(x) for x in a)
-
-        th = float(np.tan(np.radians(cam.fov_y) / 2.0))
-        return CameraRow(v(cam.position), v(cam.forward), v(cam.right), v(cam.image_up), th,
-                         cam.width / cam.height, float(cam.width), float(cam.height))
-
-    return memo(cam, "row", build)
-
-
 def _clip_planes(cam, box):
     """(7, 4) rows ``(n, offset)`` (keep ``x . n >= offset``): the medium box's six faces and
     the camera's near plane."""
@@ -368,9 +252,10 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
     ``binning.screen_rects`` + ``binning._spans`` give (hull polygons clipped to the box and
     the near plane, within the screen rectangles of ``[lo, hi]``), in compiled loops.
 
-    ``cloud``: ``hull`` holds point clouds whose convex hull contains each primitive (a
-    cone: its apex and a ring circumscribing its base circle), not planar polygons; their
-    projections' convex hulls give the spans (:func:`_cloud_project`).
+    ``cloud``: ``hull`` holds footprint solids, not planar polygons (a cone: its apex and a
+    ring circumscribing its base circle; a cylinder: two rings; ``Primitives.cloud``): each
+    clipped to the box, its projection's convex hull gives the spans
+    (:func:`.cloud_spans.cloud_project`).
 
     Many primitives are cut into consecutive pieces that numba's threads clip and project,
     then write the spans of, in primitive order (each primitive's spans depend on it alone):
@@ -380,10 +265,14 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
     c = np.ascontiguousarray
     lo, hi, hull = c(lo, float), c(hi, float), c(hull, float)
     if cloud:
-        near = c(planes[-1])
+        near, corners = c(planes[-1]), np.array(box, float).reshape(2, 3)
+        # An odd count: an apex and a ring (a cone's pyramid); even: two rings (a prism).
+        v = hull.shape[1]
+        na = 1 if v % 2 else v // 2
+        pmax = max_points(v, na)
 
         def outline(h, live, _, camv, x0, x1, y0, y1):
-            return _cloud_project(h, live, near, camv, x0, x1, y0, y1)
+            return cloud_project(h, na, live, near, corners, camv, x0, x1, y0, y1, pmax)
     else:
         outline = _clip_project
     # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored

@@ -108,10 +108,13 @@ class Primitives:
         (binning tests only the pixels it covers); a row with a non-finite vertex, or
         ``None``, falls back to the screen rectangle of ``[lo, hi]``.
     cloud : (M, V, 3) float or None
-        Curved families: points whose convex hull contains the primitive's part inside the
-        box; the compiled walkers visit only the pixels its projection covers (within the
-        rectangle). A row with a point that is not finite or behind the camera falls back to
-        the rectangle. (The numpy stage path uses the rectangles.)
+        Curved families: a footprint solid containing the primitive: an apex then a convex
+        polygon ring (V odd: a pyramid), or two such rings, vertex by vertex a translate of
+        each other (V even: a right prism). The compiled walkers visit only the pixels the
+        solid clipped to the box covers, within the rectangle
+        (:mod:`psurf_core.kernels.cloud_spans`). A row with a point that is not finite, or
+        clipped behind the camera, falls back to the rectangle. (The numpy stage path uses
+        the rectangles.)
     """
 
     technique: str

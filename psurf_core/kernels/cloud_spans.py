@@ -1,0 +1,289 @@
+"""Screen footprints of the curved families' footprint solids, clipped to the medium box.
+
+A cone's footprint solid (:attr:`~psurf_core.techniques.base.Primitives.cloud`) is the pyramid
+of its apex and a polygon ring circumscribing its base circle; a cylinder's, the right prism
+of two such rings. The solid ``C`` contains the surface, but a long cone reaches far beyond
+the box, and a short one beyond it on the side away from the photon's own flight: the rays
+through that part of its projection meet the surface outside the medium, where nothing is
+estimated (a measurement of ``cone-short`` at 256x192, ``study_medium``, K = 2..3: 46 % of its
+candidate pairs missed, 85 % of those because both roots lay outside the ray's medium
+interval).
+
+What can hold a hit is ``C`` clipped to the box ``B``. The vertices of the intersection of two
+convex polytopes are ``C``'s vertices inside ``B``, ``C``'s edges crossing ``B``'s faces,
+``B``'s edges crossing ``C``'s faces and ``B``'s corners inside ``C``; every one is an end
+of one of ``C``'s edges clipped to ``B`` or of one of ``B``'s twelve edges clipped to ``C``'s
+face half-spaces. The convex hull of those ends, projected (Andrew's monotone chain), is
+``C`` clipped to ``B`` seen by the camera; the spans then take every pixel it touches, widened
+by ``binning._SPAN_MARGIN``. The box is grown and ``C``'s faces relaxed by
+:data:`CLIP_SLACK` of the scene's size, so rounding keeps a hit on the boundary inside; a face
+whose orientation rounding could flip (a near-degenerate ring) is left out, which only
+enlarges the clipped solid.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .jit import inline, kernel
+from .projection import _cross2, _project, _row_range
+
+#: Relative slack (of the box's and the solid's extent together) by which the box is grown
+#: and the solid's faces are relaxed before clipping.
+CLIP_SLACK = 1e-7
+
+
+@inline
+def _vertex(cloud, i, j, out):  # pragma: no cover - compiled
+    for c in range(3):
+        out[c] = cloud[i, j, c]
+
+
+@inline
+def _clip_to_box(a, b, lo, hi):  # pragma: no cover - compiled
+    """Parameters ``(t0, t1)`` of segment ``a -> b`` inside the box ``[lo, hi]`` (slabs);
+    ``t0 > t1``: none."""
+    t0, t1 = 0.0, 1.0
+    for c in range(3):
+        d = b[c] - a[c]
+        if d == 0.0:
+            if a[c] < lo[c] or a[c] > hi[c]:
+                return 1.0, 0.0
+            continue
+        ta, tb = (lo[c] - a[c]) / d, (hi[c] - a[c]) / d
+        t0 = max(t0, min(ta, tb))
+        t1 = min(t1, max(ta, tb))
+    return t0, t1
+
+
+@inline
+def _clip_to_faces(a, b, faces, nf):  # pragma: no cover - compiled
+    """Parameters ``(t0, t1)`` of segment ``a -> b`` inside the half-spaces
+    ``faces[:nf]`` (rows ``(n, offset)``: keep ``x . n >= offset``)."""
+    t0, t1 = 0.0, 1.0
+    for k in range(nf):
+        fa = a[0] * faces[k, 0] + a[1] * faces[k, 1] + a[2] * faces[k, 2] - faces[k, 3]
+        fb = b[0] * faces[k, 0] + b[1] * faces[k, 1] + b[2] * faces[k, 2] - faces[k, 3]
+        if fa < 0.0 and fb < 0.0:
+            return 1.0, 0.0
+        if fa < 0.0:
+            t0 = max(t0, fa / (fa - fb))
+        elif fb < 0.0:
+            t1 = min(t1, fa / (fa - fb))
+    return t0, t1
+
+
+@inline
+def _faces(cloud, i, na, faces, slack):  # pragma: no cover - compiled
+    """The face half-spaces of primitive ``i``'s solid (``na`` = 1: a pyramid, apex first;
+    else a prism of two rings of ``na``), each oriented to hold the points' centroid and
+    relaxed by ``slack``; returns their count. Faces whose centroid distance is within
+    rounding of zero are left out (the solid only grows)."""
+    v = cloud.shape[1]
+    nb = v - na
+    cen = np.zeros(3)
+    for j in range(v):
+        for c in range(3):
+            cen[c] += cloud[i, j, c] / v
+    nf = 0
+    # Lateral faces (A_k, B_k, B_k+1), then the caps (B_0, B_1, B_2) and (A_0, A_1, A_2).
+    for k in range(nb + (2 if na > 1 else 1)):
+        if k < nb:
+            p0 = k if na > 1 else 0
+            p1, p2 = na + k, na + (k + 1) % nb
+        elif k == nb:
+            p0, p1, p2 = na, na + 1, na + 2
+        else:
+            p0, p1, p2 = 0, 1, 2
+        ux = cloud[i, p1, 0] - cloud[i, p0, 0]
+        uy = cloud[i, p1, 1] - cloud[i, p0, 1]
+        uz = cloud[i, p1, 2] - cloud[i, p0, 2]
+        wx = cloud[i, p2, 0] - cloud[i, p0, 0]
+        wy = cloud[i, p2, 1] - cloud[i, p0, 1]
+        wz = cloud[i, p2, 2] - cloud[i, p0, 2]
+        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if not nn > 0.0:
+            continue
+        nx, ny, nz = nx / nn, ny / nn, nz / nn
+        off = nx * cloud[i, p0, 0] + ny * cloud[i, p0, 1] + nz * cloud[i, p0, 2]
+        dc = nx * cen[0] + ny * cen[1] + nz * cen[2] - off
+        if abs(dc) <= 100.0 * slack:
+            continue
+        if dc < 0.0:
+            nx, ny, nz, off = -nx, -ny, -nz, -off
+        faces[nf, 0], faces[nf, 1], faces[nf, 2] = nx, ny, nz
+        faces[nf, 3] = off - slack
+        nf += 1
+    return nf
+
+
+@inline
+def _add(pts, n, a, b, t):  # pragma: no cover - compiled
+    for c in range(3):
+        pts[n, c] = a[c] + t * (b[c] - a[c])
+    return n + 1
+
+
+@inline
+def _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b):  # pragma: no cover
+    """Points whose convex hull is primitive ``i``'s solid clipped to the box ``[lo, hi]``
+    (already grown): its vertices inside, its edges' ends clipped to the box where they
+    cross it, and the box's edges clipped to its faces. Returns their count (0: the solid
+    misses the box). Where a face was left out (:func:`_faces`), the solid's own points:
+    the box's edges clipped to the remaining faces alone could cover far more."""
+    v = cloud.shape[1]
+    nb = v - na
+    nf = _faces(cloud, i, na, faces, slack)
+    if nf < nb + (2 if na > 1 else 1):
+        for j in range(v):
+            for c in range(3):
+                pts[j, c] = cloud[i, j, c]
+        return v
+    n = 0
+    for j in range(v):
+        inside = True
+        for c in range(3):
+            if not (lo[c] <= cloud[i, j, c] <= hi[c]):
+                inside = False
+        if inside:
+            _vertex(cloud, i, j, a)
+            n = _add(pts, n, a, a, 0.0)
+    # Edges: lateral (A_k, B_k), ring B (B_k, B_k+1), ring A (prism).
+    for k in range(nb * 2 + (na if na > 1 else 0)):
+        if k < nb:
+            e0, e1 = (k if na > 1 else 0), na + k
+        elif k < 2 * nb:
+            e0, e1 = na + k - nb, na + (k - nb + 1) % nb
+        else:
+            e0, e1 = k - 2 * nb, (k - 2 * nb + 1) % na
+        _vertex(cloud, i, e0, a)
+        _vertex(cloud, i, e1, b)
+        t0, t1 = _clip_to_box(a, b, lo, hi)
+        if t0 <= t1:
+            if t0 > 0.0:
+                n = _add(pts, n, a, b, t0)
+            if t1 < 1.0:
+                n = _add(pts, n, a, b, t1)
+    for e in range(12):  # the box's edges: along axis e // 4 at the corner e % 4 of the others
+        ax = e // 4
+        c1, c2 = (ax + 1) % 3, (ax + 2) % 3
+        a[ax], b[ax] = lo[ax], hi[ax]
+        a[c1] = b[c1] = hi[c1] if e % 2 else lo[c1]
+        a[c2] = b[c2] = hi[c2] if (e // 2) % 2 else lo[c2]
+        t0, t1 = _clip_to_faces(a, b, faces, nf)
+        if t0 <= t1:
+            n = _add(pts, n, a, b, t0)
+            n = _add(pts, n, a, b, t1)
+    return n
+
+
+@inline
+def _extent(cloud, i, lo, hi):  # pragma: no cover - compiled
+    """The largest coordinate extent of the box and primitive ``i``'s points together."""
+    big = 0.0
+    for c in range(3):
+        mn, mx = lo[c], hi[c]
+        for j in range(cloud.shape[1]):
+            mn, mx = min(mn, cloud[i, j, c]), max(mx, cloud[i, j, c])
+        big = max(big, mx - mn)
+    return big
+
+
+def max_points(v: int, na: int) -> int:
+    """The most points :func:`_clipped_points` writes for a solid of ``v`` points (``na``
+    in its first ring): each vertex, two per edge, two per box edge."""
+    nb = v - na
+    return v + 2 * (2 * nb + (na if na > 1 else 0)) + 24
+
+
+@kernel(nogil=True)
+def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax):  # pragma: no cover
+    """Per primitive: its footprint solid clipped to the box (module docstring), projected
+    to pixels, as the convex hull (Andrew's monotone chain, counter-clockwise) of its clipped
+    points, and its first candidate row and row count (as :func:`.spans._clip_project`).
+    A solid with a point that is not finite, or a clipped point not in front of the near
+    plane (``near``: ``(n, offset)``), gets its rectangle's rows and ``count = -1``; one
+    that misses the box gets no rows.
+
+    Parameters
+    ----------
+    cloud : (M, V, 3) float
+        The solids' points: ``na`` = 1, an apex then a ring (a pyramid); else two rings of
+        ``na`` points, in the same order (a right prism).
+    box : (2, 3) float
+        The medium box's corners.
+    pmax : int
+        :func:`max_points` of ``(V, na)``.
+
+    Returns
+    -------
+    px, py : (M, 2 pmax) float
+    count : (M,) int64
+    r0, nr : (M,) int64
+    """
+    m, v = cloud.shape[0], cloud.shape[1]
+    px = np.zeros((m, 2 * pmax))  # Andrew's chain holds up to twice its points
+    py = np.zeros((m, 2 * pmax))
+    count = np.zeros(m, np.int64)
+    r0 = np.zeros(m, np.int64)
+    nr = np.zeros(m, np.int64)
+    qx = np.empty(pmax)
+    qy = np.empty(pmax)
+    pts = np.empty((pmax, 3))
+    faces = np.empty((v + 2, 4))
+    a, b = np.empty(3), np.empty(3)
+    lo, hi = np.empty(3), np.empty(3)
+    for i in range(m):
+        if not live[i]:
+            continue
+        finite, n = True, 0
+        for j in range(v):
+            for c in range(3):
+                if not np.isfinite(cloud[i, j, c]):
+                    finite = False
+        if finite:
+            slack = CLIP_SLACK * _extent(cloud, i, box[0], box[1])
+            for c in range(3):
+                lo[c], hi[c] = box[0, c] - slack, box[1, c] + slack
+            n = _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b)
+            if n == 0:
+                continue
+            for j in range(n):
+                d = pts[j, 0] * near[0] + pts[j, 1] * near[1] + pts[j, 2] * near[2] - near[3]
+                if not d >= 0.0:
+                    finite = False
+        if not finite:
+            count[i] = -1
+            r0[i] = y0[i]
+            nr[i] = y1[i] - y0[i]
+            continue
+        for j in range(n):  # project, then insertion-sort by (x, y): n is small
+            x, y, _ = _project(pts[j, 0], pts[j, 1], pts[j, 2], cam)
+            k = j
+            while k > 0 and (qx[k - 1] > x or (qx[k - 1] == x and qy[k - 1] > y)):
+                qx[k], qy[k] = qx[k - 1], qy[k - 1]
+                k -= 1
+            qx[k], qy[k] = x, y
+        h = 0
+        for j in range(n):  # lower hull
+            while h >= 2 and _cross2(px[i, h - 2], py[i, h - 2], px[i, h - 1], py[i, h - 1],
+                                     qx[j], qy[j]) <= 0.0:
+                h -= 1
+            px[i, h], py[i, h] = qx[j], qy[j]
+            h += 1
+        lower = h + 1
+        for j in range(n - 2, -1, -1):  # upper hull
+            while h >= lower and _cross2(px[i, h - 2], py[i, h - 2], px[i, h - 1],
+                                         py[i, h - 1], qx[j], qy[j]) <= 0.0:
+                h -= 1
+            px[i, h], py[i, h] = qx[j], qy[j]
+            h += 1
+        h = max(h - 1, 1)  # the last point repeats the first
+        count[i] = h
+        ymin, ymax = np.inf, -np.inf
+        for j in range(h):
+            ymin = min(ymin, py[i, j])
+            ymax = max(ymax, py[i, j])
+        r0[i], nr[i] = _row_range(ymin, ymax, y0[i], y1[i])
+    return px, py, count, r0, nr
