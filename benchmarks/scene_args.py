@@ -1,11 +1,11 @@
 """The arguments every scatter-range benchmark takes: ``SCENE.toml KMIN KMAX`` and
 ``--resolution W,H``, and the scene they name.
 
-One home for the preamble the benchmarks below repeated (``ablation``, ``coverage_floor``,
-``member_cost``, ``pass_phases``, ``pass_wall_cpu``, ``photon_qmc``, ``pilot_choice``,
-``tail_share``): the study's comparisons run at the scenes' 64x48 and at 256x192, and every
-benchmark measuring them can render at either (the flag and its application are the
-command line's own, :func:`ui.cli.common.add_resolution_flag` and
+One home for the preamble the benchmarks below repeated (``ablation``, ``cone_misses``,
+``coverage_floor``, ``member_cost``, ``pass_phases``, ``pass_wall_cpu``, ``photon_qmc``,
+``pilot_choice``, ``tail_share``): the study's comparisons run at the scenes' 64x48 and at
+256x192, and every benchmark measuring them can render at either (the flag and its
+application are the command line's own, :func:`ui.cli.common.add_resolution_flag` and
 :func:`ui.cli.common.with_resolution`).
 """
 
