@@ -162,3 +162,30 @@ def test_a_degenerate_ring_falls_back_to_the_solids_own_points():
     got = _pixels(scene, cloud, (lo, hi))[0]
     assert got == _pixels(scene, cloud, (lo - 1e3, hi + 1e3))[0]
     assert got  # the segment is inside the box: not empty
+
+
+def test_a_hull_wider_than_its_row_falls_back_to_the_rectangle():
+    """``cloud_project`` keeps hulls of up to ``width`` vertices (a bound on its outputs'
+    memory): a wider one takes its rectangle's rows, as a non-finite one does."""
+    from psurf_core.kernels.cloud_spans import cloud_project, hull_width, max_points
+    from psurf_core.kernels.spans import _clip_planes, _screen_rects, camera_row
+
+    scene = _scene()
+    cloud, _ = _random_solids(scene, 50, "cone", np.random.default_rng(3))
+    box = np.array(_box(scene))
+    lo, hi = _bounds(cloud)
+    lo, hi = np.maximum(lo, box[0]), np.minimum(hi, box[1])
+    cam = camera_row(scene.camera)
+    x0, x1, y0, y1 = _screen_rects(lo, hi, cam)
+    live = (x1 > x0) & (y1 > y0)
+    near = np.ascontiguousarray(_clip_planes(scene.camera, box)[-1])
+    v = cloud.shape[1]
+    args = (np.ascontiguousarray(cloud), 1, live, near, box, cam, x0, x1, y0, y1,
+            max_points(v, 1))
+    full = cloud_project(*args, hull_width(v))
+    narrow = cloud_project(*args, 4)
+    wide = full[2] > 4
+    assert wide.sum() > 10 and np.all(full[2] <= hull_width(v))
+    np.testing.assert_array_equal(narrow[2][wide], -1)
+    np.testing.assert_array_equal(narrow[4][wide], (y1 - y0)[wide])
+    np.testing.assert_array_equal(narrow[2][~wide], full[2][~wide])

@@ -190,6 +190,41 @@ def _extent(cloud, i, lo, hi):  # pragma: no cover - compiled
     return big
 
 
+def hull_width(v: int) -> int:
+    """Vertices of a projected hull that :func:`cloud_project` keeps (more: the primitive's
+    rectangle): a bound on the memory its outputs take, ``M x hull_width`` twice, where the
+    clipped points can be many more (:func:`max_points`)."""
+    return 2 * v + 8
+
+
+@inline
+def _hull(pts, n, cam, qx, qy, hx, hy):  # pragma: no cover - compiled
+    """The projections of ``pts[:n]`` sorted by (x, y) in ``qx, qy``, and their convex hull
+    (Andrew's monotone chain, counter-clockwise) in ``hx, hy``; returns its vertex count."""
+    for j in range(n):  # project, then insertion-sort by (x, y): n is small
+        x, y, _ = _project(pts[j, 0], pts[j, 1], pts[j, 2], cam)
+        k = j
+        while k > 0 and (qx[k - 1] > x or (qx[k - 1] == x and qy[k - 1] > y)):
+            qx[k], qy[k] = qx[k - 1], qy[k - 1]
+            k -= 1
+        qx[k], qy[k] = x, y
+    h = 0
+    for j in range(n):  # lower hull
+        while h >= 2 and _cross2(hx[h - 2], hy[h - 2], hx[h - 1], hy[h - 1], qx[j],
+                                 qy[j]) <= 0.0:
+            h -= 1
+        hx[h], hy[h] = qx[j], qy[j]
+        h += 1
+    lower = h + 1
+    for j in range(n - 2, -1, -1):  # upper hull
+        while h >= lower and _cross2(hx[h - 2], hy[h - 2], hx[h - 1], hy[h - 1], qx[j],
+                                     qy[j]) <= 0.0:
+            h -= 1
+        hx[h], hy[h] = qx[j], qy[j]
+        h += 1
+    return max(h - 1, 1)  # the last point repeats the first
+
+
 def max_points(v: int, na: int) -> int:
     """The most points :func:`_clipped_points` writes for a solid of ``v`` points (``na``
     in its first ring): each vertex, two per edge, two per box edge."""
@@ -198,13 +233,14 @@ def max_points(v: int, na: int) -> int:
 
 
 @kernel(nogil=True)
-def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax):  # pragma: no cover
+def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax,
+                  width):  # pragma: no cover - compiled
     """Per primitive: its footprint solid clipped to the box (module docstring), projected
     to pixels, as the convex hull (Andrew's monotone chain, counter-clockwise) of its clipped
     points, and its first candidate row and row count (as :func:`.spans._clip_project`).
     A solid with a point that is not finite, or a clipped point not in front of the near
-    plane (``near``: ``(n, offset)``), gets its rectangle's rows and ``count = -1``; one
-    that misses the box gets no rows.
+    plane (``near``: ``(n, offset)``), or a hull of more than :func:`hull_width` vertices,
+    gets its rectangle's rows and ``count = -1``; one that misses the box gets no rows.
 
     Parameters
     ----------
@@ -213,23 +249,25 @@ def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax):  # pra
         ``na`` points, in the same order (a right prism).
     box : (2, 3) float
         The medium box's corners.
-    pmax : int
-        :func:`max_points` of ``(V, na)``.
+    pmax, width : int
+        :func:`max_points` of ``(V, na)``, :func:`hull_width` of ``V``.
 
     Returns
     -------
-    px, py : (M, 2 pmax) float
+    px, py : (M, width) float
     count : (M,) int64
     r0, nr : (M,) int64
     """
     m, v = cloud.shape[0], cloud.shape[1]
-    px = np.zeros((m, 2 * pmax))  # Andrew's chain holds up to twice its points
-    py = np.zeros((m, 2 * pmax))
+    px = np.zeros((m, width))
+    py = np.zeros((m, width))
     count = np.zeros(m, np.int64)
     r0 = np.zeros(m, np.int64)
     nr = np.zeros(m, np.int64)
     qx = np.empty(pmax)
     qy = np.empty(pmax)
+    hx = np.empty(2 * pmax)  # Andrew's chain holds up to twice its points
+    hy = np.empty(2 * pmax)
     pts = np.empty((pmax, 3))
     faces = np.empty((v + 2, 4))
     a, b = np.empty(3), np.empty(3)
@@ -253,33 +291,16 @@ def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax):  # pra
                 d = pts[j, 0] * near[0] + pts[j, 1] * near[1] + pts[j, 2] * near[2] - near[3]
                 if not d >= 0.0:
                     finite = False
-        if not finite:
+        h = 0
+        if finite:
+            h = _hull(pts, n, cam, qx, qy, hx, hy)
+        if not finite or h > width:
             count[i] = -1
             r0[i] = y0[i]
             nr[i] = y1[i] - y0[i]
             continue
-        for j in range(n):  # project, then insertion-sort by (x, y): n is small
-            x, y, _ = _project(pts[j, 0], pts[j, 1], pts[j, 2], cam)
-            k = j
-            while k > 0 and (qx[k - 1] > x or (qx[k - 1] == x and qy[k - 1] > y)):
-                qx[k], qy[k] = qx[k - 1], qy[k - 1]
-                k -= 1
-            qx[k], qy[k] = x, y
-        h = 0
-        for j in range(n):  # lower hull
-            while h >= 2 and _cross2(px[i, h - 2], py[i, h - 2], px[i, h - 1], py[i, h - 1],
-                                     qx[j], qy[j]) <= 0.0:
-                h -= 1
-            px[i, h], py[i, h] = qx[j], qy[j]
-            h += 1
-        lower = h + 1
-        for j in range(n - 2, -1, -1):  # upper hull
-            while h >= lower and _cross2(px[i, h - 2], py[i, h - 2], px[i, h - 1],
-                                         py[i, h - 1], qx[j], qy[j]) <= 0.0:
-                h -= 1
-            px[i, h], py[i, h] = qx[j], qy[j]
-            h += 1
-        h = max(h - 1, 1)  # the last point repeats the first
+        for j in range(h):
+            px[i, j], py[i, j] = hx[j], hy[j]
         count[i] = h
         ymin, ymax = np.inf, -np.inf
         for j in range(h):

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..binning import _NEAR, _SPAN_MARGIN, screen_rects
 from ..memo import memo
-from .cloud_spans import cloud_project, max_points
+from .cloud_spans import cloud_project, hull_width, max_points
 from .jit import kernel, scalar
 from .projection import _project, _row_range, camera_row
 from .threads import PIECES_PER_THREAD, on_threads, thread_count
@@ -269,10 +269,10 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
         # An odd count: an apex and a ring (a cone's pyramid); even: two rings (a prism).
         v = hull.shape[1]
         na = 1 if v % 2 else v // 2
-        pmax = max_points(v, na)
+        pmax, width = max_points(v, na), hull_width(v)
 
         def outline(h, live, _, camv, x0, x1, y0, y1):
-            return cloud_project(h, na, live, near, corners, camv, x0, x1, y0, y1, pmax)
+            return cloud_project(h, na, live, near, corners, camv, x0, x1, y0, y1, pmax, width)
     else:
         outline = _clip_project
     # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored
