@@ -5,9 +5,9 @@ of its apex and a polygon ring circumscribing its base circle; a cylinder's, the
 of two such rings. The solid ``C`` contains the surface, but a long cone reaches far beyond
 the box, and a short one beyond it on the side away from the photon's own flight: the rays
 through that part of its projection meet the surface outside the medium, where nothing is
-estimated (a measurement of ``cone-short`` at 256x192, ``study_medium``, K = 2..3: 46 % of its
-candidate pairs missed, 85 % of those because both roots lay outside the ray's medium
-interval).
+estimated (``benchmarks/cone_misses.py`` on ``cone-short`` at 256x192, ``study_medium``,
+K = 2..3, before this clip: 46 % of its candidate pairs missed, 85 % of those with their
+better root outside the ray's medium interval).
 
 What can hold a hit is ``C`` clipped to the box ``B``. The vertices of the intersection of two
 convex polytopes are ``C``'s vertices inside ``B``, ``C``'s edges crossing ``B``'s faces,
@@ -16,9 +16,9 @@ of one of ``C``'s edges clipped to ``B`` or of one of ``B``'s twelve edges clipp
 face half-spaces. The convex hull of those ends, projected (Andrew's monotone chain), is
 ``C`` clipped to ``B`` seen by the camera; the spans then take every pixel it touches, widened
 by ``binning._SPAN_MARGIN``. The box is grown and ``C``'s faces relaxed by
-:data:`CLIP_SLACK` of the scene's size, so rounding keeps a hit on the boundary inside; a face
-whose orientation rounding could flip (a near-degenerate ring) is left out, which only
-enlarges the clipped solid.
+:data:`CLIP_SLACK` of the scene's size, so rounding keeps a hit on the boundary inside. Where
+rounding could flip a face's orientation (a ring of near-zero radius), the primitive keeps
+its unclipped points (:func:`_clipped_points`).
 """
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def _faces(cloud, i, na, faces, slack):  # pragma: no cover - compiled
     """The face half-spaces of primitive ``i``'s solid (``na`` = 1: a pyramid, apex first;
     else a prism of two rings of ``na``), each oriented to hold the points' centroid and
     relaxed by ``slack``; returns their count. Faces whose centroid distance is within
-    rounding of zero are left out (the solid only grows)."""
+    rounding of zero are left out (and the caller keeps the solid's own points)."""
     v = cloud.shape[1]
     nb = v - na
     cen = np.zeros(3)
