@@ -42,7 +42,9 @@ def _vertex(cloud, i, j, out):  # pragma: no cover - compiled
 @inline
 def _clip_to_box(a, b, lo, hi):  # pragma: no cover - compiled
     """Parameters ``(t0, t1)`` of segment ``a -> b`` inside the box ``[lo, hi]`` (slabs);
-    ``t0 > t1``: none."""
+    ``t0 > t1``: none. Not ``mesh_bvh.slab``: that one treats a direction under
+    ``PARALLEL_EPS`` (meant for unit ray directions) as ``PARALLEL_EPS``, which on these
+    unnormalised edges could cut off part of an edge lying along a face within 1e-12."""
     t0, t1 = 0.0, 1.0
     for c in range(3):
         d = b[c] - a[c]
@@ -74,16 +76,17 @@ def _clip_to_faces(a, b, faces, nf):  # pragma: no cover - compiled
 
 
 @inline
-def _faces(cloud, i, na, faces, slack):  # pragma: no cover - compiled
+def _faces(cloud, i, na, faces, slack, cen):  # pragma: no cover - compiled
     """The face half-spaces of primitive ``i``'s solid (``na`` = 1: a pyramid, apex first;
     else a prism of two rings of ``na``), each oriented to hold the points' centroid and
     relaxed by ``slack``; returns their count. Faces whose centroid distance is within
-    rounding of zero are left out (and the caller keeps the solid's own points)."""
+    rounding of zero are left out (and the caller keeps the solid's own points). ``cen``:
+    a buffer of 3 for the centroid."""
     v = cloud.shape[1]
     nb = v - na
-    cen = np.zeros(3)
-    for j in range(v):
-        for c in range(3):
+    for c in range(3):
+        cen[c] = 0.0
+        for j in range(v):
             cen[c] += cloud[i, j, c] / v
     nf = 0
     # Lateral faces (A_k, B_k, B_k+1), then the caps (B_0, B_1, B_2) and (A_0, A_1, A_2).
@@ -126,7 +129,7 @@ def _add(pts, n, a, b, t):  # pragma: no cover - compiled
 
 
 @inline
-def _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b):  # pragma: no cover
+def _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b, cen):  # pragma: no cover
     """Points whose convex hull is primitive ``i``'s solid clipped to the box ``[lo, hi]``
     (already grown): its vertices inside, its edges' ends clipped to the box where they
     cross it, and the box's edges clipped to its faces. Returns their count (0: the solid
@@ -134,7 +137,7 @@ def _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b):  # pragma: n
     the box's edges clipped to the remaining faces alone could cover far more."""
     v = cloud.shape[1]
     nb = v - na
-    nf = _faces(cloud, i, na, faces, slack)
+    nf = _faces(cloud, i, na, faces, slack, cen)
     if nf < nb + (2 if na > 1 else 1):
         for j in range(v):
             for c in range(3):
@@ -270,7 +273,7 @@ def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax,
     hy = np.empty(2 * pmax)
     pts = np.empty((pmax, 3))
     faces = np.empty((v + 2, 4))
-    a, b = np.empty(3), np.empty(3)
+    a, b, cen = np.empty(3), np.empty(3), np.empty(3)
     lo, hi = np.empty(3), np.empty(3)
     for i in range(m):
         if not live[i]:
@@ -284,7 +287,7 @@ def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax,
             slack = CLIP_SLACK * _extent(cloud, i, box[0], box[1])
             for c in range(3):
                 lo[c], hi[c] = box[0, c] - slack, box[1, c] + slack
-            n = _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b)
+            n = _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b, cen)
             if n == 0:
                 continue
             for j in range(n):

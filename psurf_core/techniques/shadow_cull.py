@@ -118,11 +118,16 @@ def clear(*reasons: np.ndarray) -> np.ndarray:
     return np.all(ok, axis=1).astype(float)
 
 
+def _untested(blockers) -> bool:
+    """No blocker boxes or planes to cull with (every flag 0: every segment is tested)."""
+    return blockers.bounds is None or blockers.planes is None
+
+
 def hull_clear(blockers, scene, points) -> np.ndarray:
     """(M,) float: 1.0 where no blocker can block a segment between two points of the hull of
     ``points`` (a sequence of (M, 3) arrays): every blocker's box is apart, or its plane has
     them all strictly on one side (cylinders: points holding their surface and their axis)."""
-    if blockers.bounds is None or blockers.planes is None:
+    if _untested(blockers):
         return np.zeros(points[0].shape[0])
     return clear(misses(blockers, points), away(blockers, scene, points, points))
 
@@ -132,7 +137,7 @@ def plane_clear(blockers, scene, x2, w2, w1, reach2, reach1) -> np.ndarray:
     can block the segment ``x1* -> x0`` of any of a plane's hits. ``x1*`` lies on the edge
     ``x2 + [0, reach2] w2``, and the segment runs from it along the fixed ``w1`` (out to
     ``reach1``), inside the parallelogram the two span."""
-    if blockers.bounds is None or blockers.planes is None:
+    if _untested(blockers):
         return np.zeros(x2.shape[0])
     edge = [x2, x2 + reach2[:, None] * w2]
     par = edge + [e + reach1[:, None] * w1 for e in edge]
@@ -154,7 +159,7 @@ def strip_clear(blockers, scene, start, A, amax, wK, reach_p, reach_s, k3, d2, R
     K = 2 the middle pair of the strip's ``segments`` is the first again, and so is its
     flag."""
     m = start.shape[0]
-    if blockers.bounds is None or blockers.planes is None:
+    if _untested(blockers):
         return (np.zeros(m),) * 3
     edge = [start, start + amax[:, None] * A]
 
