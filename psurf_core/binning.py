@@ -217,7 +217,9 @@ def clip_polygons(poly: np.ndarray, count: np.ndarray, normal: np.ndarray, offse
         Vertices; slots ``>= count`` are ignored.
     count : (M,) int
     normal : (3,) float
-    offset : float
+    offset : float or (M,) float
+        One offset for every polygon, or one each (a box per primitive,
+        :func:`~psurf_core.techniques.bounds.hull_in_boxes`).
 
     Returns
     -------
@@ -227,7 +229,8 @@ def clip_polygons(poly: np.ndarray, count: np.ndarray, normal: np.ndarray, offse
     m, v, _ = poly.shape
     j = np.arange(v)
     valid = j[None] < count[:, None]
-    d = poly @ normal - offset
+    offset = np.asarray(offset, dtype=float)
+    d = poly @ normal - (offset[:, None] if offset.ndim else offset)
     cut = np.flatnonzero(np.any(valid & (d < 0), axis=1))
     if cut.size < m:
         # Most polygons lie inside most planes: clip only those that reach outside.
@@ -235,7 +238,8 @@ def clip_polygons(poly: np.ndarray, count: np.ndarray, normal: np.ndarray, offse
         out[:, :v] = poly
         n_out = count.copy()
         if cut.size:
-            out[cut], n_out[cut] = clip_polygons(poly[cut], count[cut], normal, offset)
+            out[cut], n_out[cut] = clip_polygons(poly[cut], count[cut], normal,
+                                                 offset[cut] if offset.ndim else offset)
         return out, n_out
     nxt = np.where(j[None] + 1 < count[:, None], j[None] + 1, 0)
     d_n = np.take_along_axis(d, nxt, axis=1)

@@ -25,12 +25,16 @@ from psurf_core.trace import trace
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _hits(tech, prims, scene, rays, ctx, hull):
+def _hits(tech, prims, scene, rays, ctx, hull, counted=False):
+    """Sorted keys of the hits the binning finds (``counted``: only those with a value:
+    a hull is cut to where hits count, ``techniques.bounds``), and the pairs it tried."""
     box = (scene.medium.bounds_min, scene.medium.bounds_max)
     keys, pairs = [], 0
     for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, 1 << 15, hull, box):
         pairs += ray.size
         h = tech.intersect(prims, rays, ray, prim, ctx)
+        if counted:
+            h = h.select(np.any(tech.evaluate(h, prims, None, rays, ctx) != 0.0, axis=1))
         keys.append(h.ray.astype(np.int64) * (1 << 32) + h.prim)
     return np.sort(np.concatenate(keys)) if keys else np.zeros(0, np.int64), pairs
 
@@ -51,11 +55,15 @@ def test_hull_binning_finds_every_rectangle_hit(name, camera):
     ctx = PassContext(scene, blockers, 0.0, 0, 1 << 15)
     prims = tech.create(paths, ctx)
     assert prims.hull is not None
-    rect, rect_pairs = _hits(tech, prims, scene, rays, ctx, None)
-    tight, tight_pairs = _hits(tech, prims, scene, rays, ctx, prims.hull)
+    rect, rect_pairs = _hits(tech, prims, scene, rays, ctx, None, counted=True)
+    tight, tight_pairs = _hits(tech, prims, scene, rays, ctx, prims.hull, counted=True)
     assert rect.size > 100
     np.testing.assert_array_equal(tight, rect)
     assert tight_pairs < rect_pairs
+    # and every hit the hull finds, the rectangle finds
+    every_rect, every_tight = (_hits(tech, prims, scene, rays, ctx, h)[0]
+                               for h in (None, prims.hull))
+    assert np.isin(every_tight, every_rect).all()
 
 
 def test_random_parallelograms_conservative():

@@ -128,16 +128,20 @@ def _walker_equals_stages(path, pinhole, monkeypatch, names):
         prims = tech.create(paths, ctx)
         stage = list(stage_chunks(tech, prims, paths, rays, ctx))
         n_before = len(numpy_tests)
-        fused = list(fused_pass(tech, prims, paths, rays, ctx))
+        st = {}
+        fused = list(fused_pass(tech, prims, paths, rays, ctx, stats=st))
         # The walker tests every segment itself, triangle meshes included (no hand-back).
         assert len(numpy_tests) == n_before, name
         if not stage:
             assert not fused, name
             continue
         covered += 1
-        # several chunks, where there are enough hits for the budget to split them (the
-        # dense scene's optical depth leaves some techniques a handful of hits)
-        assert len(fused) > 1 or sum(len(c[0].ray) for c in fused) < 100, name
+        # several chunks (a chunk is yielded where it has hits), where there are enough
+        # hits and candidate pairs for the budget to split them (the dense scene's optical
+        # depth leaves some techniques a handful; a hull cut to where hits count, a few
+        # candidates)
+        assert (len(fused) > 1 or sum(len(c[0].ray) for c in fused) < 100
+                or st["candidates"] <= 2 * ctx.max_pairs), name
         (a_idx, a_cols, a_val, a_keys), (b_idx, b_cols, b_val, b_keys) = (_flat(stage),
                                                                           _flat(fused))
         assert a_keys == b_keys, name

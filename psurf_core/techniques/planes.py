@@ -45,7 +45,7 @@ from .base import (
     dot,
     segments_clear,
 )
-from .bounds import ray_bounds, wedge_hull
+from .bounds import box_span, ray_bounds, wedge_hull
 from .surface_common import (
     beta1,
     camera_term,
@@ -267,16 +267,25 @@ class PhotonPlane(Technique):
         w1 = paths.w[photon, K - 1]
         T2 = paths.t[photon, K - 2]
         T1 = paths.t[photon, K - 1]
+        own = own_segment(paths, photon, K - 1, x2, scene)
         if self.short:
-            c = [x2, x2 + T2[:, None] * w2, x2 + T1[:, None] * w1,
-                 x2 + T2[:, None] * w2 + T1[:, None] * w1]
+            # A hit counts only with x1* = x2 + t2* w2 in the box: off the photon's own
+            # segment (own = 0) that is t2* within the line's span of the box (bounds.py).
+            a0, a1 = np.zeros_like(T2), T2.copy()
+            off = np.flatnonzero(own == 0.0)
+            t_in, t_out = box_span(scene, x2[off], w2[off])
+            a0[off], a1[off] = np.maximum(t_in, 0.0), np.minimum(t_out, T2[off])
+            start, la = x2 + a0[:, None] * w2, np.maximum(a1 - a0, 0.0)
+            c = [start, start + la[:, None] * w2, start + T1[:, None] * w1,
+                 start + la[:, None] * w2 + T1[:, None] * w1]
             lo, hi = np.minimum.reduce(c), np.maximum.reduce(c)
+            lo[a1 < a0], hi[a1 < a0] = 1.0, 0.0  # no such t2*: no hit counts
         else:
             lo2, hi2 = ray_bounds(x2, w2, None)
             lo1, hi1 = ray_bounds(x2, w1, None)
             lo, hi = np.minimum(lo2, lo1), np.maximum(hi2, hi1)
         lo, hi = clip_bounds(scene, lo, hi)
-        hull = (wedge_hull(scene, x2, w2, w1, T2, T1) if self.short
+        hull = (wedge_hull(scene, start, w2, w1, la, T1) if self.short
                 else wedge_hull(scene, x2, w2, w1))
         eye = np.broadcast_to(np.asarray(scene.camera.position, float), x2.shape)
         m0, m1, m2, sdet = solver(x2, w2, w1, eye)
@@ -285,7 +294,7 @@ class PhotonPlane(Technique):
                                                     - scene.medium.bounds_min))
         reach = (T2, T1) if self.short else (diag, diag)
         data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1,
-                     own=own_segment(paths, photon, K - 1, x2, scene),
+                     own=own,
                      beta=beta1(paths, photon, K), origin=eye, m0=m0, m1=m1, m2=m2, sdet=sdet,
                      clear=cull.plane_clear(ctx.blockers, scene, x2, w2, w1, *reach))
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
