@@ -48,9 +48,8 @@ class Clock:
 
 def _numpy_stages(tech, group, est, prims, paths, rays, ctx, mis, pt):
     """The numpy stage path of a technique without a compiled walker, timed."""
-    med = ctx.scene.medium
     it = candidate_pairs(ctx.scene.camera, rays, prims.lo, prims.hi, ctx.max_pairs, prims.hull,
-                         (med.bounds_min, med.bounds_max))
+                         prims.clip_box(ctx.scene))
     while True:
         with Clock(pt, "walk"):
             pair = next(it, None)

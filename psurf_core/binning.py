@@ -87,7 +87,9 @@ def candidate_pairs(
         a non-finite vertex fall back to the rectangle of ``[lo, hi]``. With ``box`` (the
         medium's ``(bounds_min, bounds_max)``), candidates are the pixels the polygon clipped
         to the box covers (per-row spans) instead of the whole rectangle.
-    box : (bounds_min, bounds_max), optional
+    box : (lo, hi), optional
+        The medium's bounds, (3,) each, or a box per primitive, (M, 3) each
+        (:meth:`Primitives.clip_box`).
     """
     if lo.shape[0] == 0 or len(rays) == 0:
         return
@@ -219,7 +221,7 @@ def clip_polygons(poly: np.ndarray, count: np.ndarray, normal: np.ndarray, offse
     normal : (3,) float
     offset : float or (M,) float
         One offset for every polygon, or one each (a box per primitive,
-        :func:`~psurf_core.techniques.bounds.hull_in_boxes`).
+        :attr:`~psurf_core.techniques.base.Primitives.box`).
 
     Returns
     -------
@@ -263,12 +265,12 @@ def _polygon_spans(cam: Camera, hull, ids, x0, x1, y0, y1, box):
     """Per-row pixel spans of hull polygons clipped to the box and to the near plane."""
     m = hull.shape[0]
     poly, count = hull, np.full(m, hull.shape[1])
-    bmin, bmax = box
+    bmin, bmax = (b[ids] if np.ndim(b) == 2 else b for b in box)
     for axis in range(3):
         e = np.zeros(3)
         e[axis] = 1.0
-        poly, count = clip_polygons(poly, count, e, bmin[axis])
-        poly, count = clip_polygons(poly, count, -e, -bmax[axis])
+        poly, count = clip_polygons(poly, count, e, bmin[..., axis])
+        poly, count = clip_polygons(poly, count, -e, -bmax[..., axis])
     poly, count = clip_polygons(poly, count, np.asarray(cam.forward, float),
                                 float(np.dot(cam.forward, cam.position)) + _NEAR)
     v = max(int(count.max()), 1)

@@ -230,9 +230,8 @@ def stage_chunks(tech: Technique, prims, paths, rays: Rays, ctx: PassContext):
     """``(Hits, per-photon values (H, 3))`` chunks of ``tech`` by the stages: binning ->
     :meth:`~Technique.intersect` -> :meth:`~Technique.evaluate`, at most ``ctx.max_pairs``
     candidate pairs at a time. The reference the fused kernels are checked against."""
-    box = (ctx.scene.medium.bounds_min, ctx.scene.medium.bounds_max)
     for ray, prim in candidate_pairs(ctx.scene.camera, rays, prims.lo, prims.hi,
-                                     ctx.max_pairs, prims.hull, box):
+                                     ctx.max_pairs, prims.hull, prims.clip_box(ctx.scene)):
         hits = tech.intersect(prims, rays, ray, prim, ctx)
         if len(hits):
             yield hits, tech.evaluate(hits, prims, paths, rays, ctx)

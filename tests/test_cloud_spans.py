@@ -178,7 +178,7 @@ def test_a_hull_wider_than_its_row_falls_back_to_the_rectangle():
     cam = camera_row(scene.camera)
     x0, x1, y0, y1 = _screen_rects(lo, hi, cam)
     live = (x1 > x0) & (y1 > y0)
-    near = np.ascontiguousarray(_clip_planes(scene.camera, box)[-1])
+    near = np.ascontiguousarray(_clip_planes(scene.camera, box)[0, -1])
     v = cloud.shape[1]
     args = (np.ascontiguousarray(cloud), 1, live, near, box, cam, x0, x1, y0, y1,
             max_points(v, 1))

@@ -1,7 +1,9 @@
 """Hulls cut to where a hit counts (``techniques.bounds``): a short photon plane's to the part
 whose rebuilt ``x1*`` lies in the box, a light strip's to the box moved by the photon's later
-segments. The cut must lose no hit that has a value, and must cut: both are checked against
-brute force (every camera ray with every primitive), and the helpers against direct tests."""
+segments (``Primitives.box``, which both span paths clip it to). The cut must lose no hit
+that has a value, and must cut: both are checked against brute force (every camera ray with
+every primitive) on the numpy stage path and on the compiled walker's, and the helpers
+against direct tests."""
 
 from __future__ import annotations
 
@@ -11,13 +13,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from psurf_core.binning import candidate_pairs
+from psurf_core.binning import _spans, candidate_pairs, screen_rects
 from psurf_core.camera import camera_rays
 from psurf_core.geometry import blockers_of
+from psurf_core.kernels.fused import fused_pass
+from psurf_core.kernels.spans import hull_spans
 from psurf_core.scene_io import load_scene
 from psurf_core.techniques import get_technique
 from psurf_core.techniques.base import PassContext
-from psurf_core.techniques.bounds import box_span, hull_in_boxes
+from psurf_core.techniques.bounds import box_span, hit_boxes
 from psurf_core.trace import trace
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -32,13 +36,21 @@ def _keys(tech, prims, rays, ctx, ray, prim):
 
 
 def _binned(tech, prims, scene, rays, ctx):
-    box = (scene.medium.bounds_min, scene.medium.bounds_max)
     every, counted = [], []
     for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, 1 << 16,
-                                     prims.hull, box):
+                                     prims.hull, prims.clip_box(scene)):
         a, b = _keys(tech, prims, rays, ctx, ray, prim)
         every.append(a)
         counted.append(b)
+    return np.sort(np.concatenate(every)), np.sort(np.concatenate(counted))
+
+
+def _walked(tech, prims, paths, rays, ctx):
+    every, counted = [], []
+    for hits, val, _ in fused_pass(tech, prims, paths, rays, ctx):
+        key = hits.ray.astype(np.int64) * (1 << 32) + hits.prim
+        every.append(key)
+        counted.append(key[np.any(val != 0.0, axis=1)])
     return np.sort(np.concatenate(every)), np.sort(np.concatenate(counted))
 
 
@@ -60,15 +72,16 @@ def test_cut_hull_keeps_every_hit_with_a_value(scene_name, kmin, kmax, name):
     ray = np.repeat(seen, len(prims))
     prim = np.tile(np.arange(len(prims)), seen.size)
     every, counted = _keys(tech, prims, rays, ctx, ray, prim)
-    b_every, b_counted = _binned(tech, prims, scene, rays, ctx)
     assert counted.size > 100
-    np.testing.assert_array_equal(b_counted, counted)
-    # the cut bites: of the hits without a value, the binning tries at most half
     blocked = np.setdiff1d(every, counted)
-    b_blocked = np.setdiff1d(b_every, b_counted)
-    if name != "plane-vt-short" and scene_name == "study_medium":
-        assert blocked.size > 0.05 * every.size, (blocked.size, every.size)
-        assert b_blocked.size < 0.5 * blocked.size, (b_blocked.size, blocked.size)
+    for b_every, b_counted in (_binned(tech, prims, scene, rays, ctx),
+                               _walked(tech, prims, paths, rays, ctx)):
+        np.testing.assert_array_equal(b_counted, counted)
+        # the cut bites: of the hits without a value, the spans leave at most half
+        if name != "plane-vt-short" and scene_name == "study_medium":
+            b_blocked = np.setdiff1d(b_every, b_counted)
+            assert blocked.size > 0.05 * every.size, (blocked.size, every.size)
+            assert b_blocked.size < 0.5 * blocked.size, (b_blocked.size, blocked.size)
 
 
 def test_box_span_is_the_lines_part_in_the_box():
@@ -90,35 +103,38 @@ def test_box_span_is_the_lines_part_in_the_box():
     assert not (near & ~inside).any()
 
 
-def test_hull_in_boxes_is_the_polygons_part_in_the_box():
+@pytest.mark.parametrize("inside", [False, True])
+def test_spans_with_a_box_per_primitive_are_the_numpy_ones(inside):
+    """Random parallelograms, each with its own box: the compiled spans (``hull_spans``) are
+    binning's (numpy), and within those of the medium box alone (fewer in all)."""
     scene = load_scene(ROOT / "scenes" / "study_medium.toml")
+    cam = replace(scene.camera, width=48, height=36)
+    if inside:
+        cam = replace(cam, position=np.array([0.3, -0.2, -0.6]))
     rng = np.random.default_rng(9)
-    m = 300
+    m = 400
     org = rng.uniform(-1.5, 1.5, (m, 3))
     a, b = rng.normal(size=(m, 3)), rng.normal(size=(m, 3))
     hull = np.stack([org, org + a, org + a + b, org + b], axis=1)
-    lo, hi = hull.min(axis=1), hull.max(axis=1)
-    box_lo = rng.uniform(-1.0, 0.0, (m, 3))
-    box_hi = box_lo + rng.uniform(0.2, 1.5, (m, 3))
-    hull[:5, 2] = np.nan  # a row that falls back to its rectangle is kept as it is
-    cut, clo, chi = hull_in_boxes(scene, hull, lo.copy(), hi.copy(), box_lo, box_hi)
-    assert cut.shape[1] > 4
-    assert np.isnan(cut[:5]).any(axis=(1, 2)).all()
-    # sample points of each parallelogram; those in the box lie in the cut polygon
-    u, v = rng.uniform(size=(2, 200))
-    pts = org[:, None] + u[None, :, None] * a[:, None] + v[None, :, None] * b[:, None]
-    inb = np.all((pts >= box_lo[:, None]) & (pts <= box_hi[:, None]), axis=2)
-    n = np.cross(a, b)
-    kept = 0
-    for i in range(5, m):
-        poly = cut[i]
-        # inside the convex polygon: on the inner side of every (non-degenerate) edge
-        e = np.roll(poly, -1, axis=0) - poly
-        side = np.einsum("ej,pej->pe", n[i][None].repeat(len(poly), 0),
-                         np.cross(e[None], pts[i][:, None] - poly[None]))
-        ok = np.where(np.linalg.norm(e, axis=1)[None] > 1e-12, side >= -1e-9, True).all(axis=1)
-        assert ok[inb[i]].all(), i
-        kept += int(inb[i].sum())
-        if inb[i].any():
-            assert (clo[i] <= chi[i]).all()
-    assert kept > 1000
+    lo0, hi0 = hull.min(axis=1), hull.max(axis=1)
+    med = (scene.medium.bounds_min, scene.medium.bounds_max)
+    lo0, hi0 = np.maximum(lo0, med[0]), np.minimum(hi0, med[1])
+    blo = rng.uniform(-1.0, 0.3, (m, 3))
+    box, lo, hi = hit_boxes(scene, blo, np.minimum(blo + rng.uniform(0.1, 1.5, (m, 3)), 1.0),
+                            lo0, hi0)
+    per = (box[:, 0], box[:, 1])
+    got = hull_spans(cam, lo, hi, hull, per)
+    want = _spans(cam, *screen_rects(cam, lo, hi), hull, per, 1 << 20)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(g, w)
+
+    def pixels(spans):
+        p, r, c0, c1 = spans
+        n = c1 - c0
+        step = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)  # 0 .. n - 1 per span
+        return set(zip(np.repeat(p, n).tolist(),
+                       (np.repeat(r * cam.width + c0, n) + step).tolist(), strict=True))
+
+    whole = pixels(hull_spans(cam, lo0, hi0, hull, med))
+    cut = pixels(got)
+    assert cut <= whole and len(cut) < 0.8 * len(whole)

@@ -157,7 +157,7 @@ class _Run:
         box = (med.bounds_min, med.bounds_max)
         prims = self.prims
         if prims.hull is not None:
-            return hull_spans(cam, prims.lo, prims.hi, prims.hull, box)
+            return hull_spans(cam, prims.lo, prims.hi, prims.hull, prims.clip_box(self.ctx.scene))
         if prims.cloud is not None:
             return hull_spans(cam, prims.lo, prims.hi, prims.cloud, box, cloud=True)
         x0, x1, y0, y1 = screen_rects(cam, prims.lo, prims.hi)

@@ -84,8 +84,9 @@ def _screen_rects(lo, hi, cam):  # pragma: no cover - compiled
 
 @kernel(nogil=True)
 def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
-    """Per primitive: the hull polygon clipped to ``planes`` (rows ``(n, offset)``: keep
-    ``x . n >= offset``; Sutherland-Hodgman as ``binning.clip_polygons``), projected to
+    """Per primitive: the hull polygon clipped to ``planes`` ((P, 7, 4): rows ``(n, offset)``:
+    keep ``x . n >= offset``; one set for all (P = 1) or one per primitive; Sutherland-Hodgman
+    as ``binning.clip_polygons``), projected to
     pixels, and its first candidate row and row count (as ``binning._polygon_spans``).
     A primitive not ``live`` (its rectangle is empty) gets no rows; one whose hull is not
     finite gets its rectangle's rows and ``count = -1``.
@@ -97,7 +98,7 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
     r0, nr : (M,) int64
     """
     m, v = hull.shape[0], hull.shape[1]
-    vmax = v + planes.shape[0]
+    vmax = v + planes.shape[1]
     px = np.zeros((m, vmax))
     py = np.zeros((m, vmax))
     count = np.zeros(m, np.int64)
@@ -117,21 +118,20 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
         for j in range(v):
             for c in range(3):
                 a[j, c] = hull[i, j, c]
-        for k in range(planes.shape[0]):
+        pl = planes[i if planes.shape[0] > 1 else 0]
+        for k in range(pl.shape[0]):
             inside = True
             for j in range(n):
-                if (a[j, 0] * planes[k, 0] + a[j, 1] * planes[k, 1] + a[j, 2] * planes[k, 2]
-                        - planes[k, 3]) < 0:
+                if (a[j, 0] * pl[k, 0] + a[j, 1] * pl[k, 1] + a[j, 2] * pl[k, 2]
+                        - pl[k, 3]) < 0:
                     inside = False
             if inside:  # the usual case: nothing to clip
                 continue
             out = 0
             for j in range(n):
                 jn = j + 1 if j + 1 < n else 0
-                dj = (a[j, 0] * planes[k, 0] + a[j, 1] * planes[k, 1] + a[j, 2] * planes[k, 2]
-                      - planes[k, 3])
-                dn = (a[jn, 0] * planes[k, 0] + a[jn, 1] * planes[k, 1]
-                      + a[jn, 2] * planes[k, 2] - planes[k, 3])
+                dj = a[j, 0] * pl[k, 0] + a[j, 1] * pl[k, 1] + a[j, 2] * pl[k, 2] - pl[k, 3]
+                dn = a[jn, 0] * pl[k, 0] + a[jn, 1] * pl[k, 1] + a[jn, 2] * pl[k, 2] - pl[k, 3]
                 if dj >= 0:
                     b[out] = a[j]
                     out += 1
@@ -229,14 +229,18 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
 
 
 def _clip_planes(cam, box):
-    """(7, 4) rows ``(n, offset)`` (keep ``x . n >= offset``): the medium box's six faces and
-    the camera's near plane."""
-    bmin, bmax = (np.asarray(b, float) for b in box)
+    """(P, 7, 4) rows ``(n, offset)`` (keep ``x . n >= offset``): the box's six faces and the
+    camera's near plane; ``box`` ``(lo, hi)`` is one box ((3,) each: P = 1) or one per
+    primitive ((M, 3) each: P = M)."""
+    bmin, bmax = (np.asarray(b, float).reshape(-1, 3) for b in box)
     fwd = np.asarray(cam.forward, float)
-    eye = np.eye(3)
-    return np.array([row for ax in range(3)
-                     for row in (np.append(eye[ax], bmin[ax]), np.append(-eye[ax], -bmax[ax]))]
-                    + [np.append(fwd, float(fwd @ np.asarray(cam.position, float)) + _NEAR)])
+    out = np.zeros((bmin.shape[0], 7, 4))
+    for ax in range(3):
+        out[:, 2 * ax, ax], out[:, 2 * ax, 3] = 1.0, bmin[:, ax]
+        out[:, 2 * ax + 1, ax], out[:, 2 * ax + 1, 3] = -1.0, -bmax[:, ax]
+    out[:, 6, :3] = fwd
+    out[:, 6, 3] = float(fwd @ np.asarray(cam.position, float)) + _NEAR
+    return out
 
 
 #: Non-empty once the threaded path's kernel (:func:`_row_spans_into`) is loaded in this
@@ -251,6 +255,8 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
     """Candidate pixel spans ``(prim, row, c0, c1)`` of every primitive: what
     ``binning.screen_rects`` + ``binning._spans`` give (hull polygons clipped to the box and
     the near plane, within the screen rectangles of ``[lo, hi]``), in compiled loops.
+    ``box`` is ``(lo, hi)`` of the medium box ((3,) each) or of a box per primitive ((M, 3)
+    each: :meth:`Primitives.clip_box`; not for clouds).
 
     ``cloud``: ``hull`` holds footprint solids, not planar polygons (a cone: its apex and a
     ring circumscribing its base circle; a cylinder: two rings; ``Primitives.cloud``): each
@@ -260,12 +266,16 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
     Many primitives are cut into consecutive pieces that numba's threads clip and project,
     then write the spans of, in primitive order (each primitive's spans depend on it alone):
     the same spans for any thread count."""
-    planes = memo(cam, ("clip planes", tuple(np.ravel(box))), lambda: _clip_planes(cam, box))
+    per = np.ndim(box[0]) == 2  # a box per primitive (Primitives.box)
+    planes = (_clip_planes(cam, box) if per else
+              memo(cam, ("clip planes", tuple(np.ravel(box))), lambda: _clip_planes(cam, box)))
     camv = camera_row(cam)
     c = np.ascontiguousarray
     lo, hi, hull = c(lo, float), c(hi, float), c(hull, float)
     if cloud:
-        near, corners = c(planes[-1]), np.array(box, float).reshape(2, 3)
+        if per:
+            raise ValueError("hull_spans: a footprint cloud is clipped to the medium box only")
+        near, corners = c(planes[0, -1]), np.array(box, float).reshape(2, 3)
         # An odd count: an apex and a ring (a cone's pyramid); even: two rings (a prism).
         v = hull.shape[1]
         na = 1 if v % 2 else v // 2
@@ -298,7 +308,8 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
         x0, x1, y0, y1 = ((c(r[a:b]) for r in rects) if rects is not None
                           else _screen_rects(lo[a:b], hi[a:b], camv))
         live = (x1 > x0) & (y1 > y0)
-        parts[j] = (x0, x1, *outline(hull[a:b], live, planes, camv, x0, x1, y0, y1))
+        parts[j] = (x0, x1, *outline(hull[a:b], live, planes[a:b] if per else planes, camv,
+                                     x0, x1, y0, y1))
 
     on_threads(project, len(parts), threads)
     # Each piece writes from the first row it could fill (its rows before it), then the

@@ -115,6 +115,9 @@ class Primitives:
         (:mod:`psurf_core.kernels.cloud_spans`). A row with a point that is not finite, or
         clipped behind the camera, falls back to the rectangle. (The numpy stage path uses
         the rectangles.)
+    box : (M, 2, 3) float or None
+        Per primitive, ``(lo, hi)`` of a box where its hits can count (a light strip's,
+        :func:`.bounds.hit_boxes`): both span paths clip the hull to it (:meth:`clip_box`).
     """
 
     technique: str
@@ -125,9 +128,16 @@ class Primitives:
     data: dict = field(default_factory=dict)
     hull: np.ndarray | None = None
     cloud: np.ndarray | None = None
+    box: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.photon.shape[0]
+
+    def clip_box(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        """``(lo, hi)`` the hulls are clipped to: :attr:`box`'s (M, 3), or the medium's."""
+        if self.box is not None:
+            return self.box[:, 0], self.box[:, 1]
+        return scene.medium.bounds_min, scene.medium.bounds_max
 
 
 @dataclass

@@ -1,22 +1,23 @@
 """Bounds of primitives: the hull binning uses for a wedge of a plane (:func:`wedge_hull`),
 the axis-aligned bounds of segments or rays (:func:`ray_bounds`), and the parts of hulls where
-a hit can count (:func:`box_span`, :func:`hull_in_boxes`).
+a hit can count (:func:`box_span`, :func:`hit_boxes`).
 
 A hit whose rebuilt vertex leaves the medium box is blocked (its value is 0) but costs the
 walker its roots, acceptance and shadow status all the same: on ``study_medium`` at K = 2..3
 (256x192) that was 7.7 % of ``plane-t1t2-short``'s hits and 13.3 % of ``plane-ut-short``'s
 (docs/study.md, "Hulls cut to where a hit counts"). Cutting a hull to the region where its
-rebuilt vertices stay in the box removes those candidates and changes no value."""
+rebuilt vertices stay in the box (a short plane's shorter side; a light strip's box,
+:attr:`Primitives.box`, that the spans clip its hull to in place of the medium's) removes
+those candidates and changes no value."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..binning import clip_polygons
 from ..scene import Scene
 from .base import dot
 
-__all__ = ["box_span", "hull_in_boxes", "ray_bounds", "wedge_hull"]
+__all__ = ["box_span", "hit_boxes", "ray_bounds", "wedge_hull"]
 
 #: Growth of a box a hull is cut to, as a share of the medium box's largest side: the
 #: walker's own tests (``inside_box`` of a rebuilt vertex, exact in float64) decide every
@@ -47,49 +48,27 @@ def box_span(scene: Scene, origin: np.ndarray, direction: np.ndarray):
     return near.max(axis=1), far.min(axis=1)
 
 
-def hull_in_boxes(scene: Scene, hull: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                  box_lo: np.ndarray, box_hi: np.ndarray):
-    """Hull polygons cut to one axis-aligned box each (grown by :data:`CLIP_SLACK`), and their
-    bounds cut alike.
+def hit_boxes(scene: Scene, box_lo: np.ndarray, box_hi: np.ndarray, lo: np.ndarray,
+              hi: np.ndarray):
+    """Per-primitive boxes where hits can count, grown by :data:`CLIP_SLACK`, as
+    :attr:`Primitives.box` takes them, and the bounds ``[lo, hi]`` cut to them.
 
     Parameters
     ----------
-    hull : (M, V, 3) float
-        :attr:`Primitives.hull` rows (a row with a non-finite vertex is kept as it is: binning
-        gives it its rectangle).
+    box_lo, box_hi : (M, 3) float
+        Each primitive's box (inside the medium box).
     lo, hi : (M, 3) float
         The primitives' bounds.
-    box_lo, box_hi : (M, 3) float
-        Each primitive's box: the points where its hits can count.
 
     Returns
     -------
-    hull : (M, W, 3) float
-        The cut polygons, ``W`` the most vertices any has (at least ``V``), each padded with
-        its last vertex (a repeated vertex adds no edge that changes a span).
+    box : (M, 2, 3) float
     lo, hi : (M, 3) float
-        Bounds within the boxes; ``lo > hi`` (an empty rectangle) where nothing is left.
+        ``lo > hi`` (an empty rectangle) where the box is empty.
     """
     e = _slack(scene)
     box_lo, box_hi = box_lo - e, box_hi + e
-    m, v, _ = hull.shape
-    fin = np.flatnonzero(np.all(np.isfinite(hull), axis=(1, 2)))
-    poly, count = hull[fin], np.full(fin.size, v)
-    eye = np.eye(3)
-    for ax in range(3):
-        poly, count = clip_polygons(poly, count, eye[ax], box_lo[fin, ax])
-        poly, count = clip_polygons(poly, count, -eye[ax], -box_hi[fin, ax])
-    width = max(int(count.max(initial=0)), v)
-    out = np.empty((m, width, 3))
-    out[:, :v] = hull
-    out[:, v:] = hull[:, -1:]
-    j = np.arange(width)
-    last = np.take_along_axis(poly, np.maximum(count - 1, 0)[:, None, None], axis=1)
-    out[fin] = np.where((j[None] < count[:, None])[:, :, None], poly[:, :width], last)
-    lo, hi = np.maximum(lo, box_lo), np.minimum(hi, box_hi)
-    gone = fin[count == 0]
-    lo[gone], hi[gone] = 1.0, 0.0
-    return out, lo, hi
+    return np.stack([box_lo, box_hi], axis=1), np.maximum(lo, box_lo), np.minimum(hi, box_hi)
 
 
 def wedge_hull(scene: Scene, origin: np.ndarray, u: np.ndarray, v: np.ndarray,

@@ -59,7 +59,7 @@ from ..records import replace as set_field
 from . import grids
 from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
-from .bounds import hull_in_boxes, wedge_hull
+from .bounds import hit_boxes, wedge_hull
 from .single import sweep_bounds
 from .surface_common import NDP_MIN, beta1, box_reach, camera_term, plane_solve
 
@@ -426,14 +426,13 @@ class LightPlane(Technique):
         reach = TK if self.short else box_reach(scene, org) + edge
         hull = wedge_hull(scene, org, A, wK, amax, reach)
         # A hit counts only with x_{K-1}* = x0 - R and x_1* = x0 - T1 w1 in the box: x0 in
-        # the box moved by each (bounds.py).
+        # the box moved by each (bounds.py); the spans clip the hull to that box.
         R1 = T1[:, None] * w1
         bmin, bmax = (np.asarray(b, float) for b in (scene.medium.bounds_min,
                                                      scene.medium.bounds_max))
-        hull, lo, hi = hull_in_boxes(
-            scene, hull, lo, hi,
-            np.maximum.reduce([np.broadcast_to(bmin, R.shape), bmin + R, bmin + R1]),
-            np.minimum.reduce([np.broadcast_to(bmax, R.shape), bmax + R, bmax + R1]))
+        box, lo, hi = hit_boxes(
+            scene, np.maximum.reduce([np.broadcast_to(bmin, R.shape), bmin + R, bmin + R1]),
+            np.minimum.reduce([np.broadcast_to(bmax, R.shape), bmax + R, bmax + R1]), lo, hi)
         # The first scatterings x_{K-1}* lie as far from the light edge (from start).
         start = xL - a0[:, None] * A
         reach_p = TK if self.short else box_reach(scene, start) + edge
@@ -442,7 +441,7 @@ class LightPlane(Technique):
         data = table(LPlaneGeometry, org=org, A=A, B=wK, amax=amax, TK=TK, a0=a0, xL=xL,
                      w2=w2, T2=T2, w1=w1, T1=T1, p_ratio=p_uv / p_kept,
                      beta=beta1(paths, photon, K), clear0=c0, clear1=c1, clear2=c2)
-        return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
+        return Primitives(self.name, photon, K, lo, hi, data, hull=hull, box=box)
 
     def scaled_normal(self, rec):
         """(H, 3) ``e_u x w_K`` / ``e_v x w_K`` on records ``rec``."""
