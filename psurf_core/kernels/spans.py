@@ -182,73 +182,46 @@ def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - comp
 def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o_c1,
                     n):  # pragma: no cover - compiled
     """:func:`_row_spans` written to the given arrays from entry ``n``, primitive ``i`` named
-    ``p_off + i``; returns the entry after the last one written.
-
-    Edge by edge: each edge updates the column range of only the rows its ``y`` range can
-    reach (one row of slack either side), with the arithmetic a row-by-edge loop would use
-    for that pair (the same spans), so a primitive costs about its rows times the two edges
-    that cross a row plus its edges, not its rows times its edges (a footprint cloud's hull
-    has up to ``2 V + 8``: :func:`.cloud_spans.hull_width`)."""
+    ``p_off + i``; returns the entry after the last one written."""
     big = 1e30
-    rows = 0
-    for i in range(px.shape[0]):
-        rows = max(rows, nr[i])
-    xmin = np.empty(rows)
-    xmax = np.empty(rows)
+    inv_dy = np.empty(px.shape[1])  # per edge: the same for every row of the primitive
     for i in range(px.shape[0]):
         cnt = count[i]
-        if nr[i] <= 0:
-            continue
-        if cnt < 0:  # no finite hull: the rectangle
-            if x1[i] > x0[i]:
-                for row in range(r0[i], r0[i] + nr[i]):
-                    o_prim[n] = p_off + i
-                    o_row[n] = row
-                    o_c0[n] = x0[i]
-                    o_c1[n] = x1[i]
-                    n += 1
-            continue
-        for r in range(nr[i]):
-            xmin[r] = big
-            xmax[r] = -big
-        for j in range(cnt):
+        for j in range(max(cnt, 0) if nr[i] > 0 else 0):
             jn = j + 1 if j + 1 < cnt else 0
-            xa, ya, xb, yb = px[i, j], py[i, j], px[i, jn], py[i, jn]
-            dy = yb - ya
-            inv_dy = 1.0 / dy
-            # rows whose strip [row - margin, row + 1 + margin] can meet the edge's y range
-            lo_r, hi_r = 0, nr[i] - 1
-            if np.isfinite(ya) and np.isfinite(yb):  # (else every row, as before)
-                lo_r = max(int(np.floor(max(min(ya, yb), -big) - 1.0 - _SPAN_MARGIN)) - 1
-                           - r0[i], 0)
-                hi_r = min(int(np.floor(min(max(ya, yb), big) + _SPAN_MARGIN)) + 1 - r0[i],
-                           nr[i] - 1)
-            for r in range(lo_r, hi_r + 1):
-                row = r0[i] + r
+            inv_dy[j] = 1.0 / (py[i, jn] - py[i, j])
+        for row in range(r0[i], r0[i] + nr[i]):
+            if cnt < 0:  # no finite hull: the rectangle
+                c0, c1 = x0[i], x1[i]
+            else:
                 lo_y = row - _SPAN_MARGIN
                 hi_y = row + 1 + _SPAN_MARGIN
-                if dy == 0:
-                    t_lo, t_hi = 0.0, 1.0
-                    hit = ya >= lo_y and ya <= hi_y
-                else:
-                    ta = (lo_y - ya) * inv_dy
-                    tb = (hi_y - ya) * inv_dy
-                    t_lo = max(min(ta, tb), 0.0)
-                    t_hi = min(max(ta, tb), 1.0)
-                    hit = t_lo <= t_hi
-                if hit:
-                    xl = xa + t_lo * (xb - xa)
-                    xh = xa + t_hi * (xb - xa)
-                    xmin[r] = min(xmin[r], xl, xh)
-                    xmax[r] = max(xmax[r], xl, xh)
-        for r in range(nr[i]):
-            if xmin[r] > xmax[r]:
-                continue
-            c0 = int(max(np.floor(xmin[r] - _SPAN_MARGIN), x0[i]))
-            c1 = int(min(np.floor(xmax[r] + _SPAN_MARGIN) + 1, x1[i]))
+                xmin, xmax = big, -big
+                for j in range(cnt):
+                    jn = j + 1 if j + 1 < cnt else 0
+                    xa, ya, xb, yb = px[i, j], py[i, j], px[i, jn], py[i, jn]
+                    dy = yb - ya
+                    if dy == 0:
+                        t_lo, t_hi = 0.0, 1.0
+                        hit = ya >= lo_y and ya <= hi_y
+                    else:
+                        ta = (lo_y - ya) * inv_dy[j]
+                        tb = (hi_y - ya) * inv_dy[j]
+                        t_lo = max(min(ta, tb), 0.0)
+                        t_hi = min(max(ta, tb), 1.0)
+                        hit = t_lo <= t_hi
+                    if hit:
+                        xl = xa + t_lo * (xb - xa)
+                        xh = xa + t_hi * (xb - xa)
+                        xmin = min(xmin, xl, xh)
+                        xmax = max(xmax, xl, xh)
+                if xmin > xmax:
+                    continue
+                c0 = int(max(np.floor(xmin - _SPAN_MARGIN), x0[i]))
+                c1 = int(min(np.floor(xmax + _SPAN_MARGIN) + 1, x1[i]))
             if c1 > c0:
                 o_prim[n] = p_off + i
-                o_row[n] = r0[i] + r
+                o_row[n] = row
                 o_c0[n] = c0
                 o_c1[n] = c1
                 n += 1
