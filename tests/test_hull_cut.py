@@ -135,6 +135,10 @@ def test_spans_with_a_box_per_primitive_are_the_numpy_ones(inside):
         return set(zip(np.repeat(p, n).tolist(),
                        (np.repeat(r * cam.width + c0, n) + step).tolist(), strict=True))
 
-    whole = pixels(hull_spans(cam, lo0, hi0, hull, med))
+    shared = hull_spans(cam, lo0, hi0, hull, med)
+    for g, w in zip(shared, _spans(cam, *screen_rects(cam, lo0, hi0), hull, med, 1 << 20),
+                    strict=True):
+        np.testing.assert_array_equal(g, w)
+    whole = pixels(shared)
     cut = pixels(got)
     assert cut <= whole and len(cut) < 0.8 * len(whole)
