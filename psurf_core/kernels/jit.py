@@ -30,6 +30,17 @@ _install_flags()
 #: inf or NaN, as in the numpy reference, not an exception).
 OPTIONS = dict(error_model="numpy")
 
+#: Options of the MIS weight's functions (``@twin(..., weight=True)``, ``@scalar(weight=True)``):
+#: a division may be a multiplication by the reciprocal (LLVM's ``arcp``), so that ``x / st``
+#: at every hit is a multiplication once the walker hoists ``1 / st`` out of its loop. Only
+#: there: a weight is a ratio of products (a rounding more changes it by an ulp or two),
+#: where the roots and acceptance tests must round as their numpy twins do (an ill-conditioned
+#: ``|n . psi|`` of a disk moved by 5e-12 of itself with ``arcp`` everywhere). ``arcp`` is an
+#: IR rewrite, the same on every machine (``contract``, a fused multiply-add, would depend on
+#: the CPU). ``fast-multi``'s walk at 256x192: 0.95x the CPU a photon (docs/study.md,
+#: "Reciprocals in the MIS weights").
+WEIGHT_OPTIONS = dict(OPTIONS, fastmath={"arcp"})
+
 
 def kernel(fn=None, **options):
     """``@kernel`` / ``@kernel(nogil=True)``: compile ``fn`` as a kernel (see module doc)."""
@@ -49,22 +60,27 @@ def inline(fn):
     return njit(cache=False, inline="always", **OPTIONS)(fn)
 
 
-def scalar(fn):
+def scalar(fn=None, *, weight: bool = False):
     """``@scalar``: a small helper whose arguments are numbers and tuples only, compiled once
     per signature and called; LLVM inlines it into its callers all the same (checked in the
     walkers' LLVM IR, 2026-12-04: no call to one remains; a helper too large for LLVM's
     inliner, such as ``kernels.shadow._first_hit``, stays :func:`inline`). Inlined in numba's
     IR instead, it is typed again at every call site of every walker (on fresh clones,
     ``make test``'s walkers compiled in 786 s instead of 830 s once ``vec``'s, ``path_record``'s
-    row updates and the span and shadow box helpers were ``@scalar``; README, Tests)."""
-    return njit(cache=False, **OPTIONS)(fn)
+    row updates and the span and shadow box helpers were ``@scalar``; README, Tests).
+    ``weight``: compiled with :data:`WEIGHT_OPTIONS` (the MIS weight's terms)."""
+    def deco(f):
+        return njit(cache=False, **(WEIGHT_OPTIONS if weight else OPTIONS))(f)
+
+    return deco(fn) if fn is not None else deco
 
 
-def twin(numpy_function, inline: bool = False):
+def twin(numpy_function, inline: bool = False, weight: bool = False):
     """``@twin(f)``: the decorated scalar function is what compiled code runs when it calls
     ``f``. It must take the same arguments as ``f`` (numba checks the names). ``inline``:
     inline it in numba's IR at every call site (for the few tiny ones on every pair: each
-    copy costs compile time)."""
+    copy costs compile time). ``weight``: a term of the MIS weight (a density, a Jacobian, a
+    ``short_ratio``), compiled with :data:`WEIGHT_OPTIONS`."""
 
     def deco(impl):
         def typer(*args):
@@ -78,7 +94,7 @@ def twin(numpy_function, inline: bool = False):
         # Not inlined in numba's IR (a typed copy per call site: 40% more compile time);
         # LLVM inlines them into the walker all the same (measured: the same run time).
         overload(numpy_function, inline="always" if inline else "never",
-                 jit_options=OPTIONS)(typer)
+                 jit_options=WEIGHT_OPTIONS if weight else OPTIONS)(typer)
         return impl
 
     return deco

@@ -70,13 +70,13 @@ def _member(density, min_k, max_k, mask, power, ratio=False):
     key = (density, min_k, max_k, mask, power, ratio)
     if key not in _TERMS:
 
-        @scalar
+        @scalar(weight=True)
         def share(row, n):
             if row.K < min_k or (max_k >= 0 and row.K > max_k) or (mask >> row.kind) & 1 == 0:
                 return 0.0
             return n
 
-        @scalar
+        @scalar(weight=True)
         def q(row, n, short):
             v = abs(density(row) if ratio else density(row, short))
             if not v < np.inf:  # NaN and inf count as 0

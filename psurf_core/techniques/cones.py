@@ -163,7 +163,7 @@ def jacobian(rec):
     return np.abs(dot(scaled_normal(rec.w2, rec.w1, rec.t1), rec.psi))
 
 
-@twin(jacobian)
+@twin(jacobian, weight=True)
 def _jacobian(rec):
     return abs(dot(scaled_normal(rec.w2, rec.w1, rec.t1), rec.psi))
 
@@ -175,7 +175,7 @@ def density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(rec, short):
     q = q_to_w2(rec) * rec.pdf.t2 * rec.pdf.c1 * jacobian(rec)
     return q * rec.pdf.e1 if short else q
@@ -188,7 +188,7 @@ def short_ratio(rec):
     return 2.0 * np.pi * jacobian(rec) / rec.st
 
 
-@twin(short_ratio)
+@twin(short_ratio, weight=True)
 def _short_ratio(rec):
     return 2.0 * np.pi * jacobian(rec) / rec.st
 

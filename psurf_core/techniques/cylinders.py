@@ -164,7 +164,7 @@ def density(rec, short):
     return q * rec.pdf.e2 if short else q
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(rec, short):
     n = scaled_normal(rec.w2, rec.w1, rec.t1)
     q = q_to_w2(rec) * rec.pdf.c1 * rec.pdf.t1 * abs(dot(n, rec.psi))

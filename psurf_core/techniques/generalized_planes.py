@@ -194,7 +194,7 @@ def density_t1t3(rec, short):
     return q * rec.pdf.e1 * rec.pdf.e3 if short else q
 
 
-@twin(density_t1t3)
+@twin(density_t1t3, weight=True)
 def _density_t1t3(rec, short):
     q = rec.pdf.t2 * rec.pdf.w2 * rec.pdf.w1 * abs(dot(cross(rec.w1, rec.w3), rec.psi))
     return q * rec.pdf.e1 * rec.pdf.e3 if short else q
@@ -218,7 +218,7 @@ def density_t2t3(rec, short):
     return q * rec.pdf.e2 * rec.pdf.e3 if short else q
 
 
-@twin(density_t2t3)
+@twin(density_t2t3, weight=True)
 def _density_t2t3(rec, short):
     q = rec.pdf.t1 * rec.pdf.w2 * rec.pdf.w1 * abs(dot(cross(rec.w2, rec.w3), rec.psi))
     return q * rec.pdf.e2 * rec.pdf.e3 if short else q

@@ -180,7 +180,7 @@ def density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(rec, short):
     n = scaled_normal(rec.w1, revolution_axis(rec), sub(rec.x0, rec.x2))
     q = q_to_w2(rec) * 2.0 * np.pi * rec.pdf.t2 * rec.pdf.w1 * abs(dot(n, rec.psi))

@@ -261,7 +261,7 @@ def jacobian(p_kept, edge, rec):
     return p_kept / rec.pdf.uv * np.abs(dot(cross(edge, emission(rec)), rec.psi))
 
 
-@twin(jacobian)
+@twin(jacobian, weight=True)
 def _jacobian(p_kept, edge, rec):
     return p_kept / rec.pdf.uv * abs(dot(cross(edge, emission(rec)), rec.psi))
 
@@ -275,7 +275,7 @@ def density(p_kept, edge, rec, short):
     return q * np.where(k3, rec.pdf.e3, rec.pdf.e2) if short else q
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(p_kept, edge, rec, short):
     k3 = rec.K >= 3
     q = (rec.pdf.w2 * (rec.pdf.t2 if k3 else 1.0) * rec.pdf.w1 * rec.pdf.t1
@@ -291,7 +291,7 @@ def short_ratio(p_kept, edge, rec):
     return jacobian(p_kept, edge, rec) / rec.st
 
 
-@twin(short_ratio)
+@twin(short_ratio, weight=True)
 def _short_ratio(p_kept, edge, rec):
     return jacobian(p_kept, edge, rec) / rec.st
 
@@ -301,7 +301,7 @@ def density_ut(rec, short):
     return density(rec.pdf.v, rec.eu, rec, short)
 
 
-@twin(density_ut)
+@twin(density_ut, weight=True)
 def _density_ut(rec, short):
     return density(rec.pdf.v, rec.eu, rec, short)
 
@@ -311,7 +311,7 @@ def density_vt(rec, short):
     return density(rec.pdf.u, rec.ev, rec, short)
 
 
-@twin(density_vt)
+@twin(density_vt, weight=True)
 def _density_vt(rec, short):
     return density(rec.pdf.u, rec.ev, rec, short)
 
@@ -321,7 +321,7 @@ def short_ratio_ut(rec):
     return short_ratio(rec.pdf.v, rec.eu, rec)
 
 
-@twin(short_ratio_ut)
+@twin(short_ratio_ut, weight=True)
 def _short_ratio_ut(rec):
     return short_ratio(rec.pdf.v, rec.eu, rec)
 
@@ -331,7 +331,7 @@ def short_ratio_vt(rec):
     return short_ratio(rec.pdf.u, rec.ev, rec)
 
 
-@twin(short_ratio_vt)
+@twin(short_ratio_vt, weight=True)
 def _short_ratio_vt(rec):
     return short_ratio(rec.pdf.u, rec.ev, rec)
 

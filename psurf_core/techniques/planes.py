@@ -200,7 +200,7 @@ def jacobian(rec):
     return np.abs(dot(cross(rec.w1, rec.w2), rec.psi))
 
 
-@twin(jacobian)
+@twin(jacobian, weight=True)
 def _jacobian(rec):
     return abs(dot(cross(rec.w1, rec.w2), rec.psi))
 
@@ -211,7 +211,7 @@ def density(rec, short):
     return q * rec.pdf.e1 * rec.pdf.e2 if short else q
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(rec, short):
     q = q_to_w2(rec) * rec.pdf.w1 * jacobian(rec)
     return q * rec.pdf.e1 * rec.pdf.e2 if short else q
@@ -225,7 +225,7 @@ def short_ratio(rec):
     return jacobian(rec) / (rec.st * rec.st)
 
 
-@twin(short_ratio)
+@twin(short_ratio, weight=True)
 def _short_ratio(rec):
     return jacobian(rec) / (rec.st * rec.st)
 

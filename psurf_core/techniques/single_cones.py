@@ -67,7 +67,7 @@ def density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(rec, short):
     q = rec.pdf.uv * rec.pdf.c1 * abs(dot(scaled_normal(rec.axis, rec.w1, rec.t1), rec.psi))
     return q * rec.pdf.e1 if short else q

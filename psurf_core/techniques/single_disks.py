@@ -139,7 +139,7 @@ def density(rec, short):
     return q * rec.pdf.e1 if short else q
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(rec, short):
     q = rec.pdf.uv * INV_2PI * abs(dot(scaled_normal(rec.w1, rec.axis, rec.t1), rec.psi))
     return q * rec.pdf.e1 if short else q

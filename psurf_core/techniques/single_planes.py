@@ -195,7 +195,7 @@ def density_uv(rec, short):
     return p_k * rec.pdf.w1 * np.abs(dot(cross(rec.eu, rec.ev), rec.psi)) * rec.pdf.t1
 
 
-@twin(density_uv)
+@twin(density_uv, weight=True)
 def _density_uv(rec, short):
     p_k = 0.5 * rec.pdf.uv if rec.kind == MESH else 1.0
     return p_k * rec.pdf.w1 * abs(dot(cross(rec.eu, rec.ev), rec.psi)) * rec.pdf.t1
@@ -218,7 +218,7 @@ def density_ut(rec, short):
     return strip_density(rec.pdf.v, rec.eu, rec, short)
 
 
-@twin(density_ut)
+@twin(density_ut, weight=True)
 def _density_ut(rec, short):
     return strip_density(rec.pdf.v, rec.eu, rec, short)
 
@@ -228,7 +228,7 @@ def density_vt(rec, short):
     return strip_density(rec.pdf.u, rec.ev, rec, short)
 
 
-@twin(density_vt)
+@twin(density_vt, weight=True)
 def _density_vt(rec, short):
     return strip_density(rec.pdf.u, rec.ev, rec, short)
 

@@ -112,7 +112,7 @@ def density(rec, short):
     return rec.pdf.uv * rec.pdf.t1 * np.abs(dot(scaled_normal(rec.w1, rec.t1), rec.psi))
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(rec, short):
     return rec.pdf.uv * rec.pdf.t1 * abs(dot(scaled_normal(rec.w1, rec.t1), rec.psi))
 

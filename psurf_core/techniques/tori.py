@@ -209,7 +209,7 @@ def density(rec, short):
         return q_to_w2(rec) * rec.pdf.t2 * rec.pdf.t1 * np.abs(dot(n, rec.psi))
 
 
-@twin(density)
+@twin(density, weight=True)
 def _density(rec, short):
     n = scaled_normal(rec.w2, rec.w1, rec.t1, revolution_axis(rec), sub(rec.x0, rec.x2))
     return q_to_w2(rec) * rec.pdf.t2 * rec.pdf.t1 * abs(dot(n, rec.psi))
