@@ -35,9 +35,10 @@ OPTIONS = dict(error_model="numpy")
 #: at every hit is a multiplication once the walker hoists ``1 / st`` out of its loop. Only
 #: there: a weight is a ratio of products (a rounding more changes it by an ulp or two),
 #: where the roots and acceptance tests must round as their numpy twins do (an ill-conditioned
-#: ``|n . psi|`` of a disk moved by 5e-12 of itself with ``arcp`` everywhere). ``arcp`` is an
-#: IR rewrite, the same on every machine (``contract``, a fused multiply-add, would depend on
-#: the CPU). ``fast-multi``'s walk at 256x192: 0.95x the CPU a photon (docs/study.md,
+#: ``|n . psi|`` of a disk moved by 5e-12 of itself with ``arcp`` everywhere). ``arcp``
+#: rewrites LLVM's IR before code generation, so it should not make an image depend on the
+#: CPU as ``contract`` (fused multiply-adds) would (reasoned, not checked on a second
+#: machine). ``fast-multi``'s walk at 256x192: 0.95x the CPU a photon (docs/study.md,
 #: "Reciprocals in the MIS weights").
 WEIGHT_OPTIONS = dict(OPTIONS, fastmath={"arcp"})
 

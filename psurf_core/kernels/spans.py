@@ -84,10 +84,10 @@ def _screen_rects(lo, hi, cam):  # pragma: no cover - compiled
 
 @kernel(nogil=True)
 def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover - compiled
-    """Per primitive: the hull polygon clipped to ``planes`` ((P, 7, 4): rows ``(n, offset)``:
+    """Per primitive: the hull polygon clipped to ``planes`` ((P, 7, 4): rows ``(n, offset)``,
     keep ``x . n >= offset``; one set for all (P = 1) or one per primitive; Sutherland-Hodgman
-    as ``binning.clip_polygons``), projected to
-    pixels, and its first candidate row and row count (as ``binning._polygon_spans``).
+    as ``binning.clip_polygons``), projected to pixels, and its first candidate row and row
+    count (as ``binning._polygon_spans``).
     A primitive not ``live`` (its rectangle is empty) gets no rows; one whose hull is not
     finite gets its rectangle's rows and ``count = -1``.
 
