@@ -1,6 +1,6 @@
-"""Hits that cost a walk but add nothing: per technique of a spec, the share of its hits whose
-shadow statuses block them (a rebuilt vertex outside the medium box, or a segment through a
-blocker or the light), slot by slot.
+"""Hits that cost a walk but add nothing: per technique of a spec, its hits, those not blocked
+("valued"), and the share of its hits whose shadow statuses block them (a rebuilt vertex
+outside the medium box, or a segment through a blocker or the light), slot by slot.
 
 One pass's photons (pass 0 of ``--seed``, as ``render_pass`` draws them) make each member's
 primitives; the compiled walk (``kernels.fused.fused_pass`` with ``emit``) gives every hit with
@@ -97,8 +97,8 @@ def main(argv=None) -> int:
     paths = trace(scene, a.photons, np.random.default_rng(photon_ss.spawn(1)[0]),
                   blockers=blockers)
     print(f"# python benchmarks/blocked_hits.py {' '.join(sys.argv[1:] if argv is None else argv)}")
-    print(f"{'technique':<20} {'hits':>9} {'blocked':>8} {'slot 0':>7} {'slot 1':>7} "
-          f"{'slot 2':>7}" + (f" {'outside':>8}" if a.outside else ""))
+    print(f"{'technique':<20} {'hits':>9} {'valued':>9} {'blocked':>8} {'slot 0':>7} "
+          f"{'slot 1':>7} {'slot 2':>7}" + (f" {'outside':>8}" if a.outside else ""))
     for group, full in est.sets:
         mis = fused.MisSet(group, full, est.weighting) if len(group) > 1 else None
         for tech in group:
@@ -112,7 +112,8 @@ def main(argv=None) -> int:
             hits, status, _ = got
             n = len(status)
             blocked = status == BLOCKED
-            line = (f"{tech.name:<20} {n:>9} {blocked.any(axis=1).mean():>8.3f} "
+            line = (f"{tech.name:<20} {n:>9} {int((~blocked.any(axis=1)).sum()):>9} "
+                    f"{blocked.any(axis=1).mean():>8.3f} "
                     + " ".join(f"{blocked[:, c].mean():>7.3f}" for c in range(3)))
             if a.outside:
                 out = [outside(tech, prims, h, scene) for h in hits]
