@@ -90,12 +90,11 @@ def test_random_parallelograms_conservative():
          x2 + T2[:, None] * w2 + T1[:, None] * w1]
     lo, hi = clip_bounds(scene, np.minimum.reduce(c), np.maximum.reduce(c))
     from psurf_core.records import table
-    from psurf_core.techniques.planes import PlaneGeometry, solver
+    from psurf_core.techniques.planes import PlaneGeometry
+    from psurf_core.techniques.surface_common import solve_columns
 
-    eye = np.broadcast_to(scene.camera.position, x2.shape)
-    m0, m1, m2, sdet = solver(x2, w2, w1, eye)
     data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1, own=0.0, beta=1.0, clear=0.0,
-                 origin=eye, m0=m0, m1=m1, m2=m2, sdet=sdet)
+                 **solve_columns(scene, x2, w2, w1))
     prims = Primitives("planes", np.zeros(m, np.int64), np.full(m, 2), lo, hi, data,
                        hull=wedge_hull(scene, x2, w2, w1, T2, T1))
     ctx = PassContext(scene, blockers, 0.0, 0, 1 << 15)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from functools import cache
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -30,9 +31,11 @@ from psurf_core.scene_io import load_scene
 from psurf_core.techniques import get_technique
 from psurf_core.techniques.base import PassContext, cross, dot
 from psurf_core.techniques.surface_common import (
+    cached_solve,
     camera_term,
-    plane_solve,
+    plane_solver,
     quadratic_roots,
+    solve_columns,
     unit,
 )
 from psurf_core.trace import trace
@@ -44,6 +47,16 @@ TECHS = ["plane-t1t2", "planes", "plane-t1t3", "plane-t2t3-short", "cone", "cone
          "ss-disk-short", "ss-plane-uv", "ss-plane-ut", "ss-plane-ut-short", "ss-plane-vt",
          "ss-plane-vt-short", "plane-ut", "plane-ut-short", "plane-vt-short"]
 RTOL = 1e-13
+
+
+class _Cache(NamedTuple):
+    """The geometry columns :func:`cached_solve` reads (``solve_columns``)."""
+
+    eye: tuple
+    m0: tuple
+    m1: tuple
+    m2: tuple
+    sdet: float
 
 
 @cache
@@ -104,11 +117,24 @@ def test_shared_helpers_equal_their_twins():
     want = quadratic_roots(qa, qh, qc)
     got = [compiled(quadratic_roots, 3)(qa[i], qh[i], qc[i]) for i in range(300)]
     close(np.array(got).T, want, "quadratic_roots")
-    o, u, v, c, psi = (rng.normal(size=(100, 3)) for _ in range(5))
-    want = plane_solve(o, u, v, c, psi)
-    got = [compiled(plane_solve, 5)(*(tuple(x[i]) for x in (o, u, v, c, psi)))
-           for i in range(100)]
-    close(np.array(got).T, np.array(want), "plane_solve")
+    x, u, v, o, psi = (rng.normal(size=(100, 3)) for _ in range(5))
+    want = plane_solver(x, u, v, o)
+    got = [compiled(plane_solver, 4)(*(tuple(a[i]) for a in (x, u, v, o))) for i in range(100)]
+    for j, name in enumerate(("m0", "m1", "m2")):
+        close([g[j] for g in got], want[j], f"plane_solver {name}")
+    close([g[3] for g in got], want[3], "plane_solver sdet")
+    # cached_solve: rays from the camera read the stored vectors, others solve afresh; both
+    # give numpy's (which always solves afresh).
+    scene = load_scene(SCENES[0])
+    cols = solve_columns(scene, x, u, v)
+    eye = np.broadcast_to(scene.camera.position, x.shape)
+    for origin, what in ((eye, "cached"), (o, "fresh")):
+        want = cached_solve(x, u, v, None, origin, psi)
+        got = [compiled(cached_solve, 6)(tuple(x[i]), tuple(u[i]), tuple(v[i]), _Cache(
+            tuple(cols["eye"][i]), tuple(cols["m0"][i]), tuple(cols["m1"][i]),
+            tuple(cols["m2"][i]), float(cols["sdet"][i])), tuple(origin[i]), tuple(psi[i]))
+            for i in range(100)]
+        close(np.array(got).T, np.array(want), f"cached_solve {what}")
     scene = load_scene(SCENES[0])
     med, mr = scene.medium, medium_row(scene.medium)
     mus, ds, ex = rng.uniform(-1, 1, 100), rng.random(100), rng.random(100)

@@ -50,12 +50,13 @@ from .bounds import ray_bounds, wedge_hull
 from .surface_common import (
     NDP_MIN,
     beta1,
+    cached_solve,
     camera_term,
     gather,
     own_segment,
-    plane_solve,
     rebuilt_clear,
     select_photons,
+    solve_columns,
 )
 
 
@@ -74,6 +75,11 @@ class GPlaneGeometry(NamedTuple):
     fixed: float  # 1: [t1, t3] (x1* = x2* + T2 w2); 0: [t2, t3] (x1* = x2* + tv w2)
     own: float  # 1: segment x3 -> x2 is the photon's own, clear for t3 < T3
     beta: Vec  # beta_1^- (W)
+    eye: Vec  # the camera position the solver vectors below were computed for
+    m0: Vec  # solver vectors (surface_common.plane_solver) for rays from ``eye``
+    m1: Vec
+    m2: Vec
+    sdet: float
 
 
 class GPlaneHit(NamedTuple):
@@ -92,18 +98,20 @@ def scaled_normal(which, w3, w2, w1):
 
 # ------------------------------------------------------------------------- Intersect
 def roots(G, o, psi):
-    """(1, N) ray distance of the plane hit (inf / NaN where the ray is parallel)."""
-    return plane_solve(G.origin, G.w3, G.v, o, psi)[2][None]
+    """(1, N) ray distance of the plane hit (:func:`~.surface_common.cached_solve`; inf / NaN
+    where the ray is parallel)."""
+    return cached_solve(G.origin, G.w3, G.v, G, o, psi)[3][None]
 
 
 @twin(roots)
 def _roots(G, o, psi):
-    return (plane_solve(G.origin, G.w3, G.v, o, psi)[2],)
+    return (cached_solve(G.origin, G.w3, G.v, G, o, psi)[3],)
 
 
 def accept(G, o, psi, s, short):
     """Hits: inside the quadrant (parallelogram if short), not grazing."""
-    t3, tv, _, ndp = plane_solve(G.origin, G.w3, G.v, o, psi)
+    det, t3, tv, _ = cached_solve(G.origin, G.w3, G.v, G, o, psi)
+    ndp = np.abs(det)
     with np.errstate(invalid="ignore"):
         ok = (ndp > NDP_MIN) & (t3 > 0) & (tv > 0)
         if short:
@@ -113,7 +121,8 @@ def accept(G, o, psi, s, short):
 
 @twin(accept)
 def _accept(G, o, psi, s, short):
-    t3, tv, _, ndp = plane_solve(G.origin, G.w3, G.v, o, psi)
+    det, t3, tv, _ = cached_solve(G.origin, G.w3, G.v, G, o, psi)
+    ndp = abs(det)
     ok = ndp > NDP_MIN and t3 > 0.0 and tv > 0.0 and (not short or (t3 < G.Tu and tv < G.Tv))
     return ok, GPlaneHit(t3, tv, ndp)
 
@@ -282,7 +291,7 @@ class GeneralizedPlane(Technique):
         data = table(GPlaneGeometry, origin=origin, w3=u, v=v, Tu=Tu, Tv=Tv, x3=g["x3"],
                      w2=g["w2"], w1=g["w1"], T2=g["T2"], fixed=float(self.which == "t1t3"),
                      own=own_segment(paths, photon, K - 2, g["x3"], ctx.scene),
-                     beta=beta1(paths, photon, K))
+                     beta=beta1(paths, photon, K), **solve_columns(ctx.scene, origin, u, v))
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
 
     def scaled_normal(self, rec):

@@ -61,7 +61,14 @@ from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
 from .bounds import hit_boxes, wedge_hull
 from .single import sweep_bounds
-from .surface_common import NDP_MIN, beta1, box_reach, camera_term, plane_solve
+from .surface_common import (
+    NDP_MIN,
+    beta1,
+    box_reach,
+    cached_solve,
+    camera_term,
+    solve_columns,
+)
 
 
 class LPlaneGeometry(NamedTuple):
@@ -83,6 +90,11 @@ class LPlaneGeometry(NamedTuple):
     clear0: float  # 1: no blocker can block x_K* -> x_{K-1}* of any hit (shadow_cull)
     clear1: float  # ... x_{K-1}* -> x_1* (K = 3)
     clear2: float  # ... x_1* -> x0
+    eye: Vec  # the camera position the solver vectors below were computed for
+    m0: Vec  # solver vectors (surface_common.plane_solver) for rays from ``eye``
+    m1: Vec
+    m2: Vec
+    sdet: float
 
 
 class LPlaneHit(NamedTuple):
@@ -117,18 +129,20 @@ def _vertices(G, hit):
 
 # ------------------------------------------------------------------------- Intersect
 def roots(G, o, psi):
-    """(1, N) ray distance of the strip's plane (Cramer's rule; inf / NaN if parallel)."""
-    return plane_solve(G.org, G.A, G.B, o, psi)[2][None]
+    """(1, N) ray distance of the strip's plane ``org + a A + b B`` (Cramer's rule,
+    :func:`~.surface_common.cached_solve`; inf / NaN if parallel)."""
+    return cached_solve(G.org, G.A, G.B, G, o, psi)[3][None]
 
 
 @twin(roots)
 def _roots(G, o, psi):
-    return (plane_solve(G.org, G.A, G.B, o, psi)[2],)
+    return (cached_solve(G.org, G.A, G.B, G, o, psi)[3],)
 
 
 def accept(G, o, psi, s, short):
     """Hits: ``0 <= a <= amax``, ``b > 0`` (``b < T_K`` if short), not grazing."""
-    a, b, _, ndp = plane_solve(G.org, G.A, G.B, o, psi)
+    det, a, b, _ = cached_solve(G.org, G.A, G.B, G, o, psi)
+    ndp = np.abs(det)
     with np.errstate(invalid="ignore"):
         ok = (ndp > NDP_MIN) & (a >= 0.0) & (a <= G.amax) & (b > 0.0)
         if short:
@@ -138,7 +152,8 @@ def accept(G, o, psi, s, short):
 
 @twin(accept)
 def _accept(G, o, psi, s, short):
-    a, b, _, ndp = plane_solve(G.org, G.A, G.B, o, psi)
+    det, a, b, _ = cached_solve(G.org, G.A, G.B, G, o, psi)
+    ndp = abs(det)
     ok = (ndp > NDP_MIN and a >= 0.0 and a <= G.amax and b > 0.0
           and (not short or b < G.TK))
     return ok, LPlaneHit(a, b, ndp)
@@ -440,7 +455,8 @@ class LightPlane(Technique):
                                       reach, k3, T2[:, None] * w2, R, w2)
         data = table(LPlaneGeometry, org=org, A=A, B=wK, amax=amax, TK=TK, a0=a0, xL=xL,
                      w2=w2, T2=T2, w1=w1, T1=T1, p_ratio=p_uv / p_kept,
-                     beta=beta1(paths, photon, K), clear0=c0, clear1=c1, clear2=c2)
+                     beta=beta1(paths, photon, K), clear0=c0, clear1=c1, clear2=c2,
+                     **solve_columns(scene, org, A, wK))
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull, box=box)
 
     def scaled_normal(self, rec):

@@ -16,7 +16,8 @@ photon survived roulette at ``x1``) that is ``beta_1^- st ss rho0 E(...) / |n . 
 ``Q = q_{<=w2} p(w1) |(w1 x w2) . psi|`` (short: ``* E(t1) E(t2)``).
 
 Cramer's rule for ``[w2 w1 -psi] (t2, t1, s) = c - x2 = b``: with triple-product identities
-every determinant is a dot product of ``psi`` with a per-primitive vector (:func:`solver`):
+every determinant is a dot product of ``psi`` with a per-primitive vector
+(:func:`~.surface_common.plane_solver`):
 ``det = (w1 x w2).psi, t2 det = (w1 x b).psi, t1 det = (b x w2).psi, s det = w2.(w1 x b)``.
 For a pinhole camera ``b`` depends on the primitive only, so Create computes those vectors
 once per plane for the camera's position and a candidate pair costs three dot products.
@@ -31,7 +32,7 @@ import numpy as np
 
 from ..kernels.jit import twin
 from ..kernels.shadow import BLOCKED, CLEAR, status
-from ..kernels.vec import madd, sub
+from ..kernels.vec import madd
 from ..path_record import with_t1, with_t2
 from ..records import Vec, table
 from . import grids
@@ -48,10 +49,12 @@ from .base import (
 from .bounds import box_span, ray_bounds, wedge_hull
 from .surface_common import (
     beta1,
+    cached_solve,
     camera_term,
     own_segment,
     q_to_w2,
     rebuilt_clear,
+    solve_columns,
 )
 
 
@@ -65,8 +68,8 @@ class PlaneGeometry(NamedTuple):
     T1: float
     own: float  # 1: segment x2 -> x1 is the photon's own, clear for t2 < T2
     beta: Vec  # beta_1^- (W)
-    origin: Vec  # the camera position the solver vectors below were computed for
-    m0: Vec  # solver vectors (:func:`solver`) for rays from ``origin``
+    eye: Vec  # the camera position the solver vectors below were computed for
+    m0: Vec  # solver vectors (surface_common.plane_solver) for rays from ``eye``
     m1: Vec
     m2: Vec
     sdet: float
@@ -82,39 +85,15 @@ class PlaneHit(NamedTuple):
 
 
 # ------------------------------------------------------------------------- Intersect
-def solver(x2, w2, w1, o):
-    """The solve's vectors for rays from ``o``: ``m0 = w1 x w2``, ``m1 = w1 x b``,
-    ``m2 = b x w2`` and ``sdet = w2 . (w1 x b)``, ``b = o - x2``."""
-    b = o - x2
-    w1xb = cross(w1, b)
-    return cross(w1, w2), w1xb, cross(b, w2), dot(w2, w1xb)
-
-
-@twin(solver)
-def _solver(x2, w2, w1, o):
-    b = sub(o, x2)
-    w1xb = cross(w1, b)
-    return cross(w1, w2), w1xb, cross(b, w2), dot(w2, w1xb)
-
-
 def solve(G, o, psi):
-    """``(det, t2, t1, s)`` of the pairs (Cramer's rule; inf / NaN where singular)."""
-    m0, m1, m2, sdet = solver(G.x2, G.w2, G.w1, o)
-    det = dot(m0, psi)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / det
-        return det, dot(m1, psi) * inv, dot(m2, psi) * inv, sdet * inv
+    """``(det, t2, t1, s)`` of the pairs: :func:`~.surface_common.cached_solve` of
+    ``x2 + t2 w2 + t1 w1 = o + s psi`` (inf / NaN where singular)."""
+    return cached_solve(G.x2, G.w2, G.w1, G, o, psi)
 
 
 @twin(solve)
 def _solve(G, o, psi):
-    if o[0] == G.origin[0] and o[1] == G.origin[1] and o[2] == G.origin[2]:
-        m0, m1, m2, sdet = G.m0, G.m1, G.m2, G.sdet  # the camera's: computed by Create
-    else:
-        m0, m1, m2, sdet = solver(G.x2, G.w2, G.w1, o)
-    det = dot(m0, psi)
-    inv = 1.0 / det
-    return det, dot(m1, psi) * inv, dot(m2, psi) * inv, sdet * inv
+    return cached_solve(G.x2, G.w2, G.w1, G, o, psi)
 
 
 def roots(G, o, psi):
@@ -287,15 +266,13 @@ class PhotonPlane(Technique):
         lo, hi = clip_bounds(scene, lo, hi)
         hull = (wedge_hull(scene, start, w2, w1, la, T1) if self.short
                 else wedge_hull(scene, x2, w2, w1))
-        eye = np.broadcast_to(np.asarray(scene.camera.position, float), x2.shape)
-        m0, m1, m2, sdet = solver(x2, w2, w1, eye)
         # Long: x1* and x0 in the box, so t2* and t1* are at most its diagonal.
         diag = np.full(x2.shape[0], np.linalg.norm(scene.medium.bounds_max
                                                     - scene.medium.bounds_min))
         reach = (T2, T1) if self.short else (diag, diag)
         data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1,
                      own=own,
-                     beta=beta1(paths, photon, K), origin=eye, m0=m0, m1=m1, m2=m2, sdet=sdet,
+                     beta=beta1(paths, photon, K), **solve_columns(scene, x2, w2, w1),
                      clear=cull.plane_clear(ctx.blockers, scene, x2, w2, w1, *reach))
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
 

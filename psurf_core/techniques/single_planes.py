@@ -38,7 +38,7 @@ from ..records import Vec, table
 from . import grids
 from .base import Compiled, Primitives, cross, dot, segments_clear
 from .single import SingleScatter, columns, sweep_bounds
-from .surface_common import NDP_MIN, camera_term, plane_solve
+from .surface_common import NDP_MIN, cached_solve, camera_term, solve_columns
 
 
 class SPlaneGeometry(NamedTuple):
@@ -57,6 +57,11 @@ class SPlaneGeometry(NamedTuple):
     p_uv: float  # the joint light-position pdf p(u,v) (1, or 2 P_k)
     p_kept: float  # pdf of the kept position dimensions (P_k / p(v) / p(u))
     beta: Vec  # beta0 = Phi / P_L (W)
+    eye: Vec  # the camera position the solver vectors below were computed for
+    m0: Vec  # solver vectors (surface_common.plane_solver) for rays from ``eye``
+    m1: Vec
+    m2: Vec
+    sdet: float
 
 
 class SPlaneHit(NamedTuple):
@@ -91,19 +96,21 @@ def _light_point(G, hit):
 
 # ------------------------------------------------------------------------- Intersect
 def roots(G, o, psi):
-    """(1, N) ray distance of the patch's plane (Cramer's rule; inf / NaN if parallel)."""
-    return plane_solve(G.org, G.A, G.B, o, psi)[2][None]
+    """(1, N) ray distance of the patch's plane ``org + a A + b B`` (Cramer's rule,
+    :func:`~.surface_common.cached_solve`; inf / NaN if parallel)."""
+    return cached_solve(G.org, G.A, G.B, G, o, psi)[3][None]
 
 
 @twin(roots)
 def _roots(G, o, psi):
-    return (plane_solve(G.org, G.A, G.B, o, psi)[2],)
+    return (cached_solve(G.org, G.A, G.B, G, o, psi)[3],)
 
 
 def accept(G, o, psi, s, short):
     """Hits: inside the patch (the translated light, or the strip ``b > 0``, ``b < T`` if
     short), not grazing."""
-    a, b, _, ndp = plane_solve(G.org, G.A, G.B, o, psi)
+    det, a, b, _ = cached_solve(G.org, G.A, G.B, G, o, psi)
+    ndp = np.abs(det)
     with np.errstate(invalid="ignore"):
         patch = (b >= 0.0) & np.where(G.tri != 0.0, a + b <= 1.0, (a <= 1.0) & (b <= 1.0))
         strip = (a <= G.amax) & (b > 0.0)
@@ -115,7 +122,8 @@ def accept(G, o, psi, s, short):
 
 @twin(accept)
 def _accept(G, o, psi, s, short):
-    a, b, _, ndp = plane_solve(G.org, G.A, G.B, o, psi)
+    det, a, b, _ = cached_solve(G.org, G.A, G.B, G, o, psi)
+    ndp = abs(det)
     if G.strip != 0.0:
         inside = a <= G.amax and b > 0.0 and (not short or b < G.T1)
     elif G.tri != 0.0:
@@ -326,7 +334,8 @@ class SinglePlane(SingleScatter):
             _, hi = sweep_bounds(hi0, w, w, T if self.short else None)
         data = table(SPlaneGeometry, **columns(
             SPlaneGeometry, d, org=org, A=A, B=B, amax=amax, tri=tri.astype(float),
-            strip=float(self.which != "uv"), u=u, v=v, p_uv=p_uv, p_kept=p_kept))
+            strip=float(self.which != "uv"), u=u, v=v, p_uv=p_uv, p_kept=p_kept,
+            **solve_columns(scene, org, A, B)))
         return self._prims(photon, lo, hi, ctx, data)
 
     def scaled_normal(self, rec):

@@ -24,7 +24,7 @@ import numpy as np
 from ..geometry import inside_box
 from ..kernels.jit import twin
 from ..kernels.shadow import BLOCKED, CLEAR, status
-from ..kernels.vec import norm, scale, sub
+from ..kernels.vec import norm, sub
 from ..path_record import PathRecord, Pdfs
 from ..sampling import phase_value
 from .base import PassContext, Technique, cross, dot
@@ -292,31 +292,51 @@ def _q_to_w2(rec, pdf=None):
 
 
 
-def plane_solve(o, u, v, c, psi):
-    """Solve ``o + a u + b v = c + s psi`` by Cramer's rule (the planes' 3x3 system).
+def plane_solver(x, u, v, o):
+    """The solve's vectors for ``x + a u + b v = o + s psi`` and rays from ``o`` (each (3,) or
+    (H, 3)): ``m0 = v x u``, ``m1 = v x r``, ``m2 = r x u`` and ``sdet = u . (v x r)``,
+    ``r = o - x``. By Cramer's rule and triple-product identities every determinant is then a
+    dot product with ``psi`` (:func:`cached_solve`): ``det = m0 . psi``, ``a det = m1 . psi``,
+    ``b det = m2 . psi``, ``s det = sdet``. For a pinhole camera ``r`` depends on the surface
+    only: Create computes the vectors once per primitive for the camera's position."""
+    r = o - x
+    vxr = cross(v, r)
+    return cross(v, u), vxr, cross(r, u), dot(u, vxr)
 
-    Returns
-    -------
-    a, b, s : (H,) float
-        NaN/inf where the system is singular (callers test ``ndp``).
-    ndp : (H,) float
-        ``|(v x u) . psi|``, the Jacobian ``|det[u, v, -psi]|`` (scaled normal ``v x u``).
-    """
-    r = c - o
-    det = dot(cross(v, u), psi)
+
+@twin(plane_solver)
+def _plane_solver(x, u, v, o):
+    r = sub(o, x)
+    vxr = cross(v, r)
+    return cross(v, u), vxr, cross(r, u), dot(u, vxr)
+
+
+def cached_solve(x, u, v, G, o, psi):
+    """``(det, a, b, s)`` of ``x + a u + b v = o + s psi`` (inf / NaN where singular; ``|det|``
+    is the Jacobian ``|(v x u) . psi|``) from :func:`plane_solver`'s vectors. The compiled twin
+    reads those Create stored for rays from the camera at ``G.eye`` (``G.m0, G.m1, G.m2,
+    G.sdet``, :func:`solve_columns`): three dot products and a division a ray."""
+    m0, m1, m2, sdet = plane_solver(x, u, v, o)
+    det = dot(m0, psi)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / det
-        a = dot(r, cross(v, -psi)) * inv
-        b = dot(u, cross(r, -psi)) * inv
-        s = dot(u, cross(v, r)) * inv
-    return a, b, s, np.abs(det)
+        return det, dot(m1, psi) * inv, dot(m2, psi) * inv, sdet * inv
 
 
-@twin(plane_solve)
-def _plane_solve(o, u, v, c, psi):
-    r = sub(c, o)
-    det = dot(cross(v, u), psi)
+@twin(cached_solve)
+def _cached_solve(x, u, v, G, o, psi):
+    if o[0] == G.eye[0] and o[1] == G.eye[1] and o[2] == G.eye[2]:
+        m0, m1, m2, sdet = G.m0, G.m1, G.m2, G.sdet  # the camera's: computed by Create
+    else:
+        m0, m1, m2, sdet = plane_solver(x, u, v, o)
+    det = dot(m0, psi)
     inv = 1.0 / det
-    m = scale(-1.0, psi)
-    return (dot(r, cross(v, m)) * inv, dot(u, cross(r, m)) * inv, dot(u, cross(v, r)) * inv,
-            abs(det))
+    return det, dot(m1, psi) * inv, dot(m2, psi) * inv, sdet * inv
+
+
+def solve_columns(scene, x, u, v) -> dict:
+    """The geometry columns :func:`cached_solve` reads, for ``x + a u + b v`` ((M, 3) each) and
+    rays from the camera: ``eye`` and :func:`plane_solver`'s ``m0, m1, m2, sdet``."""
+    eye = np.broadcast_to(np.asarray(scene.camera.position, float), np.shape(x))
+    m0, m1, m2, sdet = plane_solver(x, u, v, eye)
+    return dict(eye=eye, m0=m0, m1=m1, m2=m2, sdet=sdet)
