@@ -15,9 +15,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..scene import Scene
-from .base import dot
+from .base import clip_bounds, dot
+from .single import sweep_bounds
+from .surface_common import box_reach
 
-__all__ = ["box_span", "hit_boxes", "ray_bounds", "wedge_hull"]
+__all__ = ["box_span", "hit_boxes", "ray_bounds", "strip_bounds", "wedge_hull"]
 
 #: Growth of a box a hull is cut to, as a share of the medium box's largest side: the
 #: walker's own tests (``inside_box`` of a rebuilt vertex, exact in float64) decide every
@@ -110,3 +112,29 @@ def ray_bounds(origin: np.ndarray, direction: np.ndarray, length: np.ndarray | N
     lo = np.where(direction < 0, -inf, origin)
     hi = np.where(direction > 0, inf, origin)
     return lo, hi
+
+
+def strip_bounds(scene: Scene, org: np.ndarray, A: np.ndarray, amax: np.ndarray,
+                 w: np.ndarray, length: np.ndarray | None, edge: np.ndarray, moves):
+    """Where the light strips ``org + a A + b w`` (``0 <= a <= amax``, ``0 < b``, ``b <
+    length`` if short; (M, 3) and (M,) each, ``length`` None: long) can be hit.
+
+    ``edge`` (M,) is each strip's edge length ``amax |A|``; ``moves`` the offsets ``x0 - x*``
+    ((M, 3) each: ``R`` and ``T1 w1``) from a hit to the rebuilt vertices that must stay in the
+    box. Returns ``(lo, hi, hull, box, reach)``: the bounds (clipped to the box, then to the
+    per-strip box), the hull (``wedge_hull``) of the strip out to ``reach`` (``length``, or the
+    box's reach from ``org`` plus the edge for a long strip: the points of a long strip inside
+    the box lie that close), and the box ``box ∩ (box + m)`` over ``moves`` that the spans
+    clip the hull to (:func:`hit_boxes`)."""
+    end = org + amax[:, None] * A
+    lo, _ = sweep_bounds(np.minimum(org, end), w, w, length)
+    _, hi = sweep_bounds(np.maximum(org, end), w, w, length)
+    lo, hi = clip_bounds(scene, lo, hi)
+    reach = length if length is not None else box_reach(scene, org) + edge
+    hull = wedge_hull(scene, org, A, w, amax, reach)
+    bmin, bmax = (np.asarray(b, float) for b in (scene.medium.bounds_min,
+                                                 scene.medium.bounds_max))
+    full = np.broadcast_to(bmin, org.shape), np.broadcast_to(bmax, org.shape)
+    box, lo, hi = hit_boxes(scene, np.maximum.reduce([full[0], *(bmin + m for m in moves)]),
+                            np.minimum.reduce([full[1], *(bmax + m for m in moves)]), lo, hi)
+    return lo, hi, hull, box, reach

@@ -58,9 +58,8 @@ from ..records import Vec, table
 from ..records import replace as set_field
 from . import grids
 from . import shadow_cull as cull
-from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot, segments_clear
-from .bounds import hit_boxes, wedge_hull
-from .single import sweep_bounds
+from .base import Compiled, Primitives, Technique, cross, dot, segments_clear
+from .bounds import strip_bounds
 from .surface_common import (
     NDP_MIN,
     beta1,
@@ -430,24 +429,10 @@ class LightPlane(Technique):
         else:
             A, a0, amax = tab["ev"][photon], v, np.where(tri, 1.0 - u, 1.0)
         org = xL - a0[:, None] * A + R
-        end = org + amax[:, None] * A
-        lo0, hi0 = np.minimum(org, end), np.maximum(org, end)
-        lo, _ = sweep_bounds(lo0, wK, wK, TK if self.short else None)
-        _, hi = sweep_bounds(hi0, wK, wK, TK if self.short else None)
-        lo, hi = clip_bounds(scene, lo, hi)
-        # Points of a long strip inside the box lie within the box's reach of org plus the
-        # edge: a parallelogram that long holds them.
         edge = amax * np.linalg.norm(A, axis=1)
-        reach = TK if self.short else box_reach(scene, org) + edge
-        hull = wedge_hull(scene, org, A, wK, amax, reach)
-        # A hit counts only with x_{K-1}* = x0 - R and x_1* = x0 - T1 w1 in the box: x0 in
-        # the box moved by each (bounds.py); the spans clip the hull to that box.
-        R1 = T1[:, None] * w1
-        bmin, bmax = (np.asarray(b, float) for b in (scene.medium.bounds_min,
-                                                     scene.medium.bounds_max))
-        box, lo, hi = hit_boxes(
-            scene, np.maximum.reduce([np.broadcast_to(bmin, R.shape), bmin + R, bmin + R1]),
-            np.minimum.reduce([np.broadcast_to(bmax, R.shape), bmax + R, bmax + R1]), lo, hi)
+        lo, hi, hull, box, reach = strip_bounds(scene, org, A, amax, wK,
+                                                TK if self.short else None, edge,
+                                                (R, T1[:, None] * w1))
         # The first scatterings x_{K-1}* lie as far from the light edge (from start).
         start = xL - a0[:, None] * A
         reach_p = TK if self.short else box_reach(scene, start) + edge
