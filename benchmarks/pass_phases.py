@@ -5,8 +5,9 @@ and CPU time of each, and the cores it kept busy.
 ``render_pass`` itself runs (the path ``compare`` takes), with clocks around ``trace``, each
 technique's ``create`` and the compiled walk of each (``fused_pass``'s chunks), so the phases
 are the real ones, threads included. The serial phases (one core) are what a pass cannot
-spread over two cores. Medians are not taken: the sums over ``--passes`` passes after three
-warm ones, per pass.
+spread over two cores; the walks' serial addition of their compact rows to the image
+(``fused.accumulate``) is printed beside them. Medians are not taken: the sums over
+``--passes`` passes after three warm ones, per pass.
 
 Usage::
 
@@ -26,6 +27,7 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
+import psurf_core.kernels.fused as F  # noqa: E402
 import psurf_core.render as R  # noqa: E402
 from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
@@ -70,6 +72,10 @@ def main(argv=None) -> int:
         return walk()
 
     R.fused_pass = fused_pass
+    # The compact rows' addition to the image, one core, between a chunk's walk and the next:
+    # inside the walk phases above, printed beside them.
+    inner = collections.defaultdict(lambda: [0.0, 0.0])
+    F.accumulate = _clocked(inner, "accumulate (in the walks)", F.accumulate)
     for group, _ in est.sets:
         for tech in group:
             tech.create = _clocked(phases, f"create {tech.name}", tech.create)
@@ -78,13 +84,15 @@ def main(argv=None) -> int:
     for i in range(3):  # warm: compiled kernels, buffers
         R.render_pass(scene, est, i, 1, settings)
     phases.clear()
+    inner.clear()
     w0, c0 = time.perf_counter(), time.process_time()
     for i in range(a.passes):
         R.render_pass(scene, est, 3 + i, 1, settings)
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
     n = a.passes
+    res = f" --resolution {a.resolution[0]},{a.resolution[1]}" if a.resolution else ""
     print(f"# python benchmarks/pass_phases.py {a.scene} {a.kmin} {a.kmax} {a.spec} "
-          f"--photons {a.photons} --passes {a.passes}")
+          f"--photons {a.photons} --passes {a.passes}{res}")
     print(f"{a.spec}, {a.photons} photons: pass wall {wall / n * 1e3:.2f} ms, "
           f"CPU {cpu / n * 1e3:.2f} ms, {cpu / wall:.2f} cores")
     rest_w, rest_c = wall, cpu
@@ -94,6 +102,8 @@ def main(argv=None) -> int:
         rest_w, rest_c = rest_w - w, rest_c - c
     print(f"  {'rest (rays, MIS set, image)':28s} wall {rest_w / n * 1e3:7.2f} ms  "
           f"CPU {rest_c / n * 1e3:7.2f} ms")
+    for name, (w, c) in inner.items():
+        print(f"  {name:28s} wall {w / n * 1e3:7.2f} ms  CPU {c / n * 1e3:7.2f} ms")
     return 0
 
 

@@ -1,0 +1,27 @@
+"""``benchmarks/pass_phases.py`` on a small pass (in a child process: the script clocks
+``render_pass``'s parts by replacing them in their modules): a line per phase, and the walks'
+serial image addition (``fused.accumulate``) printed beside them, within their time."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_phases_and_accumulate():
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "pass_phases.py"),
+         str(ROOT / "scenes" / "area.toml"), "2", "3", "planes", "--photons", "400",
+         "--passes", "3", "--resolution", "64,48"],
+        capture_output=True, text=True, check=True, cwd=ROOT, timeout=600).stdout
+    wall = {m[0].strip(): float(m[1]) for m in
+            re.findall(r"^  (\S.*?)\s+wall\s+(-?[\d.]+) ms", out, re.M)}
+    assert {"trace", "create plane-t1t2-short", "walk plane-t1t2-short",
+            "accumulate (in the walks)"} <= set(wall), out
+    # The image addition runs inside the walk phase: never longer than it, and not nothing
+    # (a 400-photon pass adds thousands of compact rows).
+    assert 0.0 < wall["accumulate (in the walks)"] <= wall["walk plane-t1t2-short"], out
