@@ -1,6 +1,7 @@
 """Bounds of primitives: the hull binning uses for a wedge of a plane (:func:`wedge_hull`),
-the axis-aligned bounds of segments or rays (:func:`ray_bounds`), and the parts of hulls where
-a hit can count (:func:`box_span`, :func:`hit_boxes`).
+the axis-aligned bounds of segments or rays (:func:`ray_bounds`), the parts of hulls where a
+hit can count (:func:`box_span`, :func:`hit_boxes`), and all of these for a light strip
+(:func:`strip_bounds`).
 
 A hit whose rebuilt vertex leaves the medium box is blocked (its value is 0) but costs the
 walker its roots, acceptance and shadow status all the same: on ``study_medium`` at K = 2..3
