@@ -85,30 +85,19 @@ class PlaneHit(NamedTuple):
 
 
 # ------------------------------------------------------------------------- Intersect
-def solve(G, o, psi):
-    """``(det, t2, t1, s)`` of the pairs: :func:`~.surface_common.cached_solve` of
-    ``x2 + t2 w2 + t1 w1 = o + s psi`` (inf / NaN where singular)."""
-    return cached_solve(G.x2, G.w2, G.w1, G, o, psi)
-
-
-@twin(solve)
-def _solve(G, o, psi):
-    return cached_solve(G.x2, G.w2, G.w1, G, o, psi)
-
-
 def roots(G, o, psi):
     """(1, N) ray distance of the plane hit."""
-    return solve(G, o, psi)[3][None]
+    return cached_solve(G.x2, G.w2, G.w1, G, o, psi)[3][None]
 
 
 @twin(roots)
 def _roots(G, o, psi):
-    return (solve(G, o, psi)[3],)
+    return (cached_solve(G.x2, G.w2, G.w1, G, o, psi)[3],)
 
 
 def accept(G, o, psi, s, short):
     """Hits: in the quadrant ``t1, t2 > 0`` (the parallelogram ``t < T`` if short)."""
-    det, t2, t1, _ = solve(G, o, psi)
+    det, t2, t1, _ = cached_solve(G.x2, G.w2, G.w1, G, o, psi)
     with np.errstate(invalid="ignore"):
         ok = np.isfinite(1.0 / det) & (t2 > 0) & (t1 > 0)
         if short:
@@ -118,7 +107,7 @@ def accept(G, o, psi, s, short):
 
 @twin(accept)
 def _accept(G, o, psi, s, short):
-    det, t2, t1, _ = solve(G, o, psi)
+    det, t2, t1, _ = cached_solve(G.x2, G.w2, G.w1, G, o, psi)
     ok = np.isfinite(1.0 / det) and t2 > 0.0 and t1 > 0.0 and (
         not short or (t2 < G.T2 and t1 < G.T1))
     return ok, PlaneHit(t2, t1, abs(det))
