@@ -24,7 +24,7 @@ from .geometry import Blockers, blockers_of
 from .interrupt import check, held
 from .kernels.fused import MisSet, fused_pass
 from .mis import mis_weights
-from .photon_sampler import batch_draws, check_photon_sampler
+from .photon_sampler import batch_draws, check_photon_sampler, sequence_start
 from .pixel_jitter import check_sampler, pass_jitter
 from .scene import Scene
 from .techniques.base import PassContext, Technique
@@ -132,8 +132,12 @@ def photon_pass(
     blockers: Blockers,
     record: PassRecord | None = None,
     tally: Tally | None = None,
+    seed: int | None = None,
 ) -> np.ndarray:
     """Sum of per-photon contributions per ray (R, 3), not yet divided by the photon count.
+
+    ``seed``: the render's seed, which the ``sobol-seq`` photon sampler's sequence needs
+    (without it, that sampler scrambles each batch apart, as ``sobol``).
 
     ``tally(tech, hits, prims, rays, unweighted, weighted)`` (optional) sees every chunk of
     hits with its per-photon contributions before (``unweighted``, (H, 3)) and after
@@ -149,7 +153,8 @@ def photon_pass(
     for b in range(n_batches):
         n = min(PHOTON_BATCH, settings.photons - b * PHOTON_BATCH)
         draws = batch_draws(settings.photon_sampler, np.random.default_rng(batch_ss[b]), scene,
-                            n, trace_depth(scene))
+                            n, trace_depth(scene), seed,
+                            sequence_start(pass_index, settings.photons, b, PHOTON_BATCH))
         paths = trace(scene, n, draws, blockers=blockers)
         if record is not None:
             record.paths.append(paths)
@@ -280,7 +285,7 @@ def render_pass(
         per_ray = reference_pass(scene, rays, np.random.default_rng(photon_ss), blockers)
     else:
         per_ray = photon_pass(scene, estimator, rays, photon_ss, settings, pass_index,
-                              blockers, record, tally) / settings.photons
+                              blockers, record, tally, seed) / settings.photons
     return pass_image(cam, rays, per_ray, settings.spp)
 
 

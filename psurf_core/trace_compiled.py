@@ -317,12 +317,13 @@ def trace(scene, n: int, rng, blockers, depth: int) -> ref.PhotonPaths:
     for j in range(1, depth + 1):
         # Segment j's variates: phase cosine, azimuth and flight (the flight alone at j = 1).
         nr = (3 if j > 1 else 1) * m
-        rj = uniforms(rng, 3 if j > 1 else 1, m, out=r[:nr])
+        rj = uniforms(rng, 3 if j > 1 else 1, m, out=r[:nr], rows=idx[:m])
         u_phi = rj[m : 2 * m] if j > 1 else empty
         # Then segment j + 1's roulette variates (the reference draws them next).
         q_next = ref.roulette_survival(scene, j) if j < depth else 1.0
         select = j < depth and m > 0
-        u_next = uniforms(rng, 1, m, out=ws.u[:m]) if select and q_next < 1.0 else empty
+        u_next = (uniforms(rng, 1, m, out=ws.u[:m], rows=idx[:m]) if select and q_next < 1.0
+                  else empty)
         off = rec_off[-1]
         ws.records(off + m)
         ok = oks[j]

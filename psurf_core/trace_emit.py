@@ -151,19 +151,19 @@ def emit(scene: Scene, rng: np.random.Generator, n: int) -> dict:
             continue
         beta[sel] = lt.power_rgb / pmf[li]
         if isinstance(lt, PointLight):
-            r = uniforms(rng, 2, m)
+            r = uniforms(rng, 2, m, rows=sel)
             x0[sel], normal[sel] = lt.position, lt.axis
             w1[sel] = uniform_direction(r[:m], *cos_sin_turn(r[m:]))
         elif isinstance(lt, AreaLight):
-            r = uniforms(rng, 4, m, pairs=True)
+            r = uniforms(rng, 4, m, pairs=True, rows=sel)
             nl = np.broadcast_to(lt.normal, (m, 3))
             uv[sel] = r[: 2 * m].reshape(m, 2)
             x0[sel] = parallelogram_point(lt.corner, lt.edge_u, lt.edge_v, uv[sel])
             normal[sel] = nl
             w1[sel] = cosine_direction(nl, r[2 * m : 3 * m], *cos_sin_turn(r[3 * m :]))
         elif isinstance(lt, MeshLight):
-            k = _discrete(lt.areas / lt.area, rng, m)
-            r = uniforms(rng, 4, m)
+            k = _discrete(lt.areas / lt.area, rng, m, sel)
+            r = uniforms(rng, 4, m, rows=sel)
             tri[sel] = k
             uv[sel], x0[sel] = triangle_point(lt.triangles[k], r[:m], r[m : 2 * m])
             normal[sel] = lt.normals[k]
@@ -175,10 +175,10 @@ def emit(scene: Scene, rng: np.random.Generator, n: int) -> dict:
                 x0=x0, w1=w1, beta=beta)
 
 
-def _discrete(pmf, rng, n):
+def _discrete(pmf, rng, n, rows=None):
     """``sampling.sample_discrete``: one variate per index, the index :func:`search_right`
     finds in the normalised cdf (clamped to the last; no search for one entry). (n,) intp."""
-    u = uniforms(rng, 1, n)
+    u = uniforms(rng, 1, n, rows=rows, spare=len(pmf) == 1)
     if len(pmf) == 1:
         return np.zeros(n, dtype=np.intp)
     cdf = np.cumsum(pmf)

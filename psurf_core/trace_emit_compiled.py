@@ -172,9 +172,9 @@ def _cdf(pmf):
     return cdf
 
 
-def _discrete(cdf, rng, n, out):
+def _discrete(cdf, rng, n, out, rows=None):
     """``trace_emit._discrete`` with the compiled search, into ``out`` ((n,) intp)."""
-    u = uniforms(rng, 1, n)
+    u = uniforms(rng, 1, n, rows=rows, spare=cdf is None)
     if cdf is None:
         out[:] = 0
     else:
@@ -234,18 +234,19 @@ def emit(scene, rng, n: int, out: dict | None = None) -> dict:
     for li, (lt, args) in enumerate(zip(scene.lights, per, strict=True)):
         rows = np.empty(0, dtype=np.intp) if one else np.flatnonzero(light == li)
         m = n if one else rows.size
+        sel = None if one else rows
         if m == 0:
             continue
         if isinstance(lt, PointLight):
-            r = uniforms(rng, 2, m)
+            r = uniforms(rng, 2, m, rows=sel)
             emit_point(rows, one, r[:m], r[m:], *args, *fields)
         elif isinstance(lt, AreaLight):
-            r = uniforms(rng, 4, m, pairs=True)
+            r = uniforms(rng, 4, m, pairs=True, rows=sel)
             emit_area(rows, one, r[: 2 * m].reshape(m, 2), r[2 * m : 3 * m], r[3 * m :], *args,
                       *fields)
         else:
-            k = _discrete(args[0], rng, m, np.empty(m, dtype=np.intp))
-            r = uniforms(rng, 4, m)
+            k = _discrete(args[0], rng, m, np.empty(m, dtype=np.intp), sel)
+            r = uniforms(rng, 4, m, rows=sel)
             emit_mesh(rows, one, k, r[:m], r[m : 2 * m], r[2 * m : 3 * m], r[3 * m :],
                       *args[1:], *fields)
     return e

@@ -299,12 +299,13 @@ def trace_numpy(scene: Scene, n_photons: int, rng: np.random.Generator, blockers
         # a photon goes on only while a technique can still use the segment.
         if j > 1:
             q = roulette_survival(scene, j - 1)
-            u = uniforms(rng, 1, photon.size) if q < 1.0 else None
+            u = uniforms(rng, 1, photon.size, rows=photon) if q < 1.0 else None
             keep = survives(oks[max(j - LOOKBACK, 0)][photon], u, q)
             photon, x, w = photon[keep], x[keep], w[keep]
             beta = scattered_weight(beta[keep], q, med.albedo)
             m = photon.size
-            r = uniforms(rng, 3, m)  # the phase cosine, the azimuth, the flight: one call
+            # The phase cosine, the azimuth, the flight: one call.
+            r = uniforms(rng, 3, m, rows=photon)
             w = direction_about(w, phase_cosine(med.phase.g, r[:m]), *cos_sin_turn(r[m : 2 * m]))
             t = free_flight(r[2 * m :], med.sigma_t)
         else:

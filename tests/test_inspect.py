@@ -80,13 +80,18 @@ def test_reconstruct_single_technique_has_weight_one(scene):
         reconstruct_hit(ins, len(ins.table))
 
 
-def test_primitive_pixels_contains_the_picked_pixel(scene):
-    ins = inspect_pixel(scene, "planes", SEED, PASS, PIXEL, SETTINGS)
+@pytest.mark.parametrize("settings", [SETTINGS, RenderSettings(
+    photons=200, pixel_sampler="r2", photon_sampler="sobol-seq")], ids=["default", "seq"])
+def test_primitive_pixels_contains_the_picked_pixel(scene, settings):
+    """The primitive of the pixel's largest contribution reaches that pixel: coverage
+    traces the pass's own photons and rays, whatever its samplers (until 2026-12-06 it
+    took independent ones, another primitive under ``sobol``)."""
+    ins = inspect_pixel(scene, "planes", SEED, 3, PIXEL, settings)
     t = ins.table
     k = int(t.by_contribution()[0])
     assert np.mean(t.contribution[k]) > 0
-    mask = primitive_pixels(scene, "planes", SEED, PASS, str(t.technique[k]), int(t.prim[k]),
-                            SETTINGS, batch=int(t.batch[k]))
+    mask = primitive_pixels(scene, "planes", SEED, 3, str(t.technique[k]), int(t.prim[k]),
+                            settings, batch=int(t.batch[k]))
     assert mask.shape == (scene.camera.height, scene.camera.width) and mask.dtype == bool
     assert mask[PIXEL[1], PIXEL[0]]
     assert 1 <= mask.sum() < mask.size

@@ -159,10 +159,13 @@ def add_sampler_flags(parser, pixel: str = "independent", photon: str = "indepen
              f"image's); default {pixel}")
     parser.add_argument(
         "--photon-sampler", choices=PHOTON_SAMPLERS, default=photon,
-        help="where each batch's photons take their random numbers: 'independent' or 'sobol' "
+        help="where each batch's photons take their random numbers: 'independent', 'sobol' "
              "(each photon a point of a scrambled Sobol set drawn for the batch: each photon "
              "stays uniformly sampled, the batch covers its light points and directions "
-             f"evenly; passes stay independent); default {photon}")
+             "evenly; passes stay independent) or 'sobol-seq' (one scrambled Sobol sequence "
+             "over the passes, pass i taking its next points: the passes together cover "
+             "them evenly; passes are no longer independent, so per-pass variance "
+             f"overstates the image's); default {photon}")
 
 
 # --------------------------------------------------------------------------- checks
