@@ -8,7 +8,9 @@ repeated with other seeds can. For each estimator and sampler this renders ``--s
 seeds (``--seed``, ``--seed + 1``, ...) of ``P`` passes each, with ``compare``'s ``r2`` pixel
 sampler, and prints the relative variance of the final image across the seeds
 (``psurf_core.metrics.var_relmse`` of the per-pixel variance of the mean, against
-``--reference`` or else the mean of every render) and its ratio to ``sobol``'s. Equal passes
+``--reference`` or else the mean of every render) and its ratio to the first sampler's;
+with ``--reference``, also the median of the renders' relMSEs (a typical render's error:
+``planes``' grazing tail moves the variance across seeds far more than it). Equal passes
 and photons: equal cost (the sampler's own cost is in ``seconds``).
 
 Usage::
@@ -34,14 +36,16 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
-from psurf_core.metrics import var_relmse  # noqa: E402
+from psurf_core.metrics import relmse, var_relmse  # noqa: E402
 from psurf_core.render import RenderSettings, render, warm_up  # noqa: E402
 
 
 def spread(scene, spec: str, photons: int, passes: int, sampler: str, seeds, ref=None):
-    """``(relvar, seconds)``: the relative variance of the mean image of ``passes`` passes
-    across ``seeds`` (against ``ref``, else the renders' mean) and the wall seconds a render
-    took (median)."""
+    """``(relvar, median_relmse, seconds)``: the relative variance of the mean image of
+    ``passes`` passes across ``seeds`` (against ``ref``, else the renders' mean), the median
+    over the seeds of each render's relMSE against ``ref`` (NaN without one: a typical
+    render's error, which a heavy tail moves far less than the variance) and the wall
+    seconds a render took (median)."""
     est = parse_estimator(spec, scene)
     st = RenderSettings(photons=photons, pixel_sampler="r2", photon_sampler=sampler)
     warm_up(scene, est, st)
@@ -52,8 +56,9 @@ def spread(scene, spec: str, photons: int, passes: int, sampler: str, seeds, ref
         secs.append(time.perf_counter() - t0)
     imgs = np.array(imgs)
     var_of_mean = imgs.var(axis=0, ddof=1)
-    return var_relmse(var_of_mean, imgs.mean(axis=0) if ref is None else ref), float(
-        np.median(secs))
+    typical = np.nan if ref is None else float(np.median([relmse(i, ref) for i in imgs]))
+    return (var_relmse(var_of_mean, imgs.mean(axis=0) if ref is None else ref), typical,
+            float(np.median(secs)))
 
 
 def main(argv=None) -> int:
@@ -74,10 +79,12 @@ def main(argv=None) -> int:
         spec, n, p = item.rsplit(":", 2)
         base = None
         for sampler in samplers:
-            v, sec = spread(scene, spec, int(n), int(p), sampler, seeds, ref)
-            base = v if base is None else base
-            print(f"{spec:>12} {sampler:>12}: relVar {v:.4g} ({v / base:.3f}x "
-                  f"{samplers[0]}), {sec:.2f} s a render of {p} x {n}", flush=True)
+            v, typ, sec = spread(scene, spec, int(n), int(p), sampler, seeds, ref)
+            base = (v, typ) if base is None else base
+            med = "" if ref is None else (f"; median relMSE {typ:.4g} "
+                                          f"({typ / base[1]:.3f}x)")
+            print(f"{spec:>12} {sampler:>12}: relVar {v:.4g} ({v / base[0]:.3f}x "
+                  f"{samplers[0]}){med}, {sec:.2f} s a render of {p} x {n}", flush=True)
     return 0
 
 

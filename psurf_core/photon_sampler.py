@@ -26,7 +26,7 @@ and azimuth, a roulette), laid out as the stage reads them.
   photons takes the sequence's points ``i N`` to ``(i + 1) N - 1`` (:func:`sequence_start`),
   so the first ``P`` passes together are the sequence's first ``P N`` points, which cover
   the cube more evenly than ``P`` sets scrambled apart. Each point is uniform (the scrambling,
-  :func:`sequence_engine`, is drawn once per seed and epoch: ``SeedSequence([seed,
+  :func:`sequence_points`, is drawn once per seed and epoch: ``SeedSequence([seed,
   SEQUENCE_KEY, epoch])``), so every pass stays unbiased; passes are no longer independent
   (negatively correlated where the estimate is smooth in the photons), so a per-pass
   variance over-states the mean's: error bars are conservative. Where a pass is rendered

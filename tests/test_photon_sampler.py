@@ -200,13 +200,18 @@ def test_each_sequence_point_is_uniform(point):
         assert stats.kstest(x[:, dim], "uniform").pvalue > 1e-3
 
 
+def _tiny_k2(tmp_path):
+    """The tiny area-light scene at K = 2."""
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY + "\n[render]\nmin_scatter = 2\nmax_scatter = 2\n")
+    return load_scene(str(path))
+
+
 def test_renders_with_either_photon_sampler_agree(tmp_path):
     """`planes` and `fast-multi` on the tiny area-light scene at K = 2, 4 seeds x 40 passes
     of each sampler: the images' totals agree within 5 standard errors (from the seeds'
     spread)."""
-    path = tmp_path / "tiny.toml"
-    path.write_text(TINY + "\n[render]\nmin_scatter = 2\nmax_scatter = 2\n")
-    scene = load_scene(str(path))
+    scene = _tiny_k2(tmp_path)
     for spec in ("planes", "fast-multi"):
         est = parse_estimator(spec, scene)
         totals = {}
@@ -224,9 +229,7 @@ def test_renders_with_either_photon_sampler_agree(tmp_path):
 
 def test_sobol_renders_are_fixed_by_seed(tmp_path):
     """The same seed gives the same image; another sampler another one."""
-    path = tmp_path / "tiny.toml"
-    path.write_text(TINY + "\n[render]\nmin_scatter = 2\nmax_scatter = 2\n")
-    scene = load_scene(str(path))
+    scene = _tiny_k2(tmp_path)
     est = parse_estimator("planes", scene)
     st = RenderSettings(photons=200, photon_sampler="sobol")
     a = render(scene, est, st, passes=3, seed=9).mean
@@ -266,9 +269,7 @@ def test_sequence_render_resumes_bit_for_bit(tmp_path):
     """``sobol-seq``: two passes, then two more continuing the accumulator, give the image of
     four passes in one go (pass ``i``'s points depend on the seed, ``i`` and the pass size
     alone), also when another seed's sequence was drawn in between."""
-    path = tmp_path / "tiny.toml"
-    path.write_text(TINY + "\n[render]\nmin_scatter = 2\nmax_scatter = 2\n")
-    scene = load_scene(str(path))
+    scene = _tiny_k2(tmp_path)
     est = parse_estimator("fast-multi", scene)
     st = RenderSettings(photons=150, photon_sampler="sobol-seq")
     whole = render(scene, est, st, passes=4, seed=5).mean
