@@ -122,6 +122,26 @@ def _accumulate(img: np.ndarray, pixel: np.ndarray, values: np.ndarray) -> None:
         img[:, c] += np.bincount(pixel, weights=values[:, c], minlength=n)
 
 
+def photon_draws(scene: Scene, settings: RenderSettings, batch_ss, b: int,
+                 seed: int | None, pass_index: int):
+    """What batch ``b`` of pass ``pass_index`` traces its photons from (``batch_ss``: the
+    pass's per-batch SeedSequences): the one place a pass's photons are drawn, for the pass
+    and for the inspector's coverage alike (:func:`~.photon_sampler.batch_draws`)."""
+    n = min(PHOTON_BATCH, settings.photons - b * PHOTON_BATCH)
+    return batch_draws(settings.photon_sampler, np.random.default_rng(batch_ss[b]), scene, n,
+                       trace_depth(scene), seed,
+                       sequence_start(pass_index, settings.photons, b, PHOTON_BATCH))
+
+
+def pass_rays(scene: Scene, settings: RenderSettings, seed: int, pass_index: int, ray_rng,
+              blockers: Blockers, pixels: np.ndarray | None = None) -> Rays:
+    """The camera rays of pass ``pass_index`` (its pixel sampler's jitter from ``ray_rng``,
+    :func:`pass_generators`' first), for the pass and the inspector's coverage alike."""
+    jit = pass_jitter(settings.pixel_sampler, scene.camera.n_pixels, settings.spp, seed,
+                      pass_index, ray_rng)
+    return camera_rays(scene, settings.spp, pixels=pixels, blockers=blockers, jitter_xy=jit)
+
+
 def photon_pass(
     scene: Scene,
     estimator: Estimator,
@@ -152,10 +172,8 @@ def photon_pass(
     batch_ss = photon_ss.spawn(n_batches)
     for b in range(n_batches):
         n = min(PHOTON_BATCH, settings.photons - b * PHOTON_BATCH)
-        draws = batch_draws(settings.photon_sampler, np.random.default_rng(batch_ss[b]), scene,
-                            n, trace_depth(scene), seed,
-                            sequence_start(pass_index, settings.photons, b, PHOTON_BATCH))
-        paths = trace(scene, n, draws, blockers=blockers)
+        paths = trace(scene, n, photon_draws(scene, settings, batch_ss, b, seed, pass_index),
+                      blockers=blockers)
         if record is not None:
             record.paths.append(paths)
         for group, full_group in estimator.sets:
@@ -274,9 +292,7 @@ def render_pass(
     cam = scene.camera
     blockers = blockers_of(scene) if blockers is None else blockers
     ray_rng, photon_ss = pass_generators(seed, pass_index)
-    jit = pass_jitter(settings.pixel_sampler, cam.n_pixels, settings.spp, seed, pass_index,
-                      ray_rng)
-    rays = camera_rays(scene, settings.spp, pixels=pixels, blockers=blockers, jitter_xy=jit)
+    rays = pass_rays(scene, settings, seed, pass_index, ray_rng, blockers, pixels)
     if record is not None:
         record.rays = rays
     if estimator.reference:

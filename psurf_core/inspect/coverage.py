@@ -5,14 +5,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..binning import candidate_pairs
-from ..camera import camera_rays
 from ..geometry import blockers_of
-from ..photon_sampler import batch_draws, sequence_start
-from ..pixel_jitter import pass_jitter
-from ..render import PHOTON_BATCH, RenderSettings, kernel_radius, pass_generators
+from ..render import (
+    PHOTON_BATCH,
+    RenderSettings,
+    kernel_radius,
+    pass_generators,
+    pass_rays,
+    photon_draws,
+)
 from ..scene import Scene
 from ..techniques.base import PassContext, Primitives, take
-from ..trace import trace, trace_depth
+from ..trace import trace
 from .pixel import photon_estimator
 
 __all__ = ["primitive_pixels"]
@@ -50,18 +54,14 @@ def primitive_pixels(scene: Scene, estimator, seed: int, pass_index: int, techni
     # The pass's own rays and photons, as render_pass draws them (its pixel and photon
     # samplers), so the primitive is the one the pass's hit table lists.
     ray_rng, photon_ss = pass_generators(seed, pass_index)
-    jit = pass_jitter(settings.pixel_sampler, cam.n_pixels, settings.spp, seed, pass_index,
-                      ray_rng)
-    rays = camera_rays(scene, settings.spp, blockers=blockers, jitter_xy=jit)
+    rays = pass_rays(scene, settings, seed, pass_index, ray_rng, blockers)
     n_batches = -(-settings.photons // PHOTON_BATCH)
     if not 0 <= batch < n_batches:
         raise ValueError(f"batch {batch} does not exist (the pass has {n_batches})")
     batch_ss = photon_ss.spawn(n_batches)
     n = min(PHOTON_BATCH, settings.photons - batch * PHOTON_BATCH)
-    draws = batch_draws(settings.photon_sampler, np.random.default_rng(batch_ss[batch]), scene,
-                        n, trace_depth(scene), seed,
-                        sequence_start(pass_index, settings.photons, batch, PHOTON_BATCH))
-    paths = trace(scene, n, draws, blockers=blockers)
+    paths = trace(scene, n, photon_draws(scene, settings, batch_ss, batch, seed, pass_index),
+                  blockers=blockers)
     ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, pass_index),
                       pass_index, settings.max_pairs)
     prims = tech.create(paths, ctx)
