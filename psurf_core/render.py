@@ -65,8 +65,9 @@ class RenderSettings:
         sequence over the passes, randomly shifted per pixel and seed).
     photon_sampler : str
         Where each batch's photons take their random numbers
-        (:mod:`psurf_core.photon_sampler`): ``"independent"`` or ``"sobol"`` (each photon a
-        point of a scrambled Sobol set drawn for the batch).
+        (:mod:`psurf_core.photon_sampler`): ``"independent"``, ``"sobol"`` (each photon a
+        point of a scrambled Sobol set drawn for the batch) or ``"sobol-seq"`` (one scrambled
+        Sobol sequence over the passes).
     """
 
     photons: int = 20_000
@@ -80,6 +81,13 @@ class RenderSettings:
     def __post_init__(self):
         check_sampler(self.pixel_sampler)
         check_photon_sampler(self.photon_sampler)
+
+    @property
+    def independent_passes(self) -> bool:
+        """Whether a render's passes are independent estimates: not with the ``r2`` pixel
+        sampler or the ``sobol-seq`` photon sampler, whose passes share one low-discrepancy
+        sequence, so per-pass variance / passes overstates the final image's variance."""
+        return self.pixel_sampler == "independent" and self.photon_sampler != "sobol-seq"
 
     @property
     def max_pairs(self) -> int:

@@ -22,9 +22,10 @@ are then averaged over the runs):
     "Var" of an equal-time comparison. ``null`` when a run had fewer than two passes.
 ``image_variance``
     The variance of a run's final image that ``ratio`` compares: ``mean_variance``, or, with
-    the ``r2`` pixel sampler (whose passes are not independent, :mod:`.pixel_jitter`) and two
-    or more runs, ``run_variance`` (below). With ``r2`` and one run it is ``mean_variance``,
-    which then overstates it (a warning says so: only then).
+    the ``r2`` pixel sampler or ``sobol-seq`` photons (whose passes are not independent,
+    :mod:`.pixel_jitter`, :mod:`.photon_sampler`) and two or more runs, ``run_variance``
+    (below). With them and one run it is ``mean_variance``, which then overstates it (a
+    warning says so: only then).
 ``ratio``
     ``image_variance / image_variance`` of the first estimator ("Var: 0.23x");
     ``relmse_ratio`` likewise for ``relmse``. ``ratio_time_normalized`` multiplies each
@@ -39,7 +40,9 @@ are then averaged over the runs):
     mean(R)^2))`` is what a perfect estimator would score, and ``relmse_from_variance`` is the
     same formula with the estimator's ``var / passes``: what its noise alone explains (the
     relative variance of the final image; ``relmse_from_variance_ratio`` compares it with the
-    first estimator's, free of bias and of the reference's noise).
+    first estimator's, free of bias and of the reference's noise). Where the passes are not
+    independent and there are two or more runs it is ``run_relmse_from_variance``: the same
+    formula with the per-pixel variance of the runs' final images.
 ``per_photon_variance``, ``ratio_equal_photons``
     ``per_pass_variance x photons_per_pass`` (the variance one photon's contribution would
     have; ``null`` for the path tracer) and its ratio to the first estimator's: the comparison
@@ -320,10 +323,11 @@ def compare(
     # Heavy tails make the reference's own error bars (and so the floor) too small.
     ref_reliability = reference.reliability()
     warnings = [ref_reliability["message"]] if ref_reliability["warn"] else []
-    if settings.pixel_sampler != "independent" and runs < 2:
+    if not settings.independent_passes and runs < 2:
         warnings.append(
-            f"pixel sampler {settings.pixel_sampler!r} with one run: a run's passes share one "
-            "low-discrepancy pattern of pixel points, so Var (per-pass variance / passes) "
+            f"pixel sampler {settings.pixel_sampler!r}, photon sampler "
+            f"{settings.photon_sampler!r} with one run: a run's passes share one "
+            "low-discrepancy sequence, so Var (per-pass variance / passes) "
             "overstates the variance of its image; --runs 2 or more measures it across the "
             "runs' images (relMSE is unaffected)")
 
@@ -366,8 +370,10 @@ def compare(
                                              "passes": int(n),
                                              "curves": []})
             arrays["estimators"][k]["curves"].append(curve)
-        run_var = (float(np.mean(np.var(np.stack(finals), axis=0, ddof=1)))
-                   if runs >= 2 else None)
+        run_var_map = np.var(np.stack(finals), axis=0, ddof=1) if runs >= 2 else None
+        run_var = None if run_var_map is None else float(np.mean(run_var_map))
+        run_relvar = None if run_var_map is None else var_relmse(run_var_map, ref)
+        correlated = not settings.independent_passes and run_var is not None
         mean_var = _mean_or_none([x["mean_variance"] for x in per_run])
         notes = list(est.notes)
         if not est.reference and _min_k(est) > scene.min_scatter:
@@ -393,13 +399,15 @@ def compare(
             "per_pass_variance": _mean_or_none([x["per_pass_variance"] for x in per_run]),
             "mean_variance": mean_var,
             "relmse": _mean_or_none([x["relmse"] for x in per_run]),
-            "relmse_from_variance": _mean_or_none([x["relmse_from_variance"]
-                                                   for x in per_run]),
-            "run_variance": run_var,
             # The runs' spread where the passes of a run are not independent (the r2 pixel
-            # sampler: per-pass variance / passes would count its pixel-area noise in full).
-            "image_variance": (run_var if settings.pixel_sampler != "independent"
-                               and run_var is not None else mean_var),
+            # sampler, sobol-seq photons: per-pass variance / passes would count the noise
+            # their sequences remove in full).
+            "relmse_from_variance": (run_relvar if correlated else
+                                     _mean_or_none([x["relmse_from_variance"]
+                                                    for x in per_run])),
+            "run_variance": run_var,
+            "run_relmse_from_variance": run_relvar,
+            "image_variance": run_var if correlated else mean_var,
             "notes": notes,
             "runs": [{k2: _nan_to_none(v) for k2, v in x.items()} for x in per_run],
         })

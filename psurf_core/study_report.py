@@ -129,8 +129,9 @@ def write_compare_md(path: str, study: dict) -> None:
     lines += [
         "Var = the variance of the final image / the first estimator's: mean variance (the "
         "pixel mean of per-pass variance / passes) with independent passes; with the r2 pixel "
-        "sampler and two or more runs, the variance across the runs' images (r2's passes are "
-        "not independent, so per-pass variance overstates it). 'Var, equal photons' "
+        "sampler or sobol-seq photons and two or more runs, the variance across the runs' "
+        "images (their passes are not independent, so per-pass variance overstates it; relVar "
+        "likewise). 'Var, equal photons' "
         "compares per-pass variance x photons per pass instead (no time involved). relMSE = "
         f"mean over pixels and channels of (I - R)^2 / (R^2 + {study['relmse_eps']:g} "
         "mean(R)^2) against the reference R, averaged over runs; 'Var, run by run' is run r's "

@@ -407,13 +407,39 @@ def test_r2_sampler_compares_the_runs_images(tiny):
     assert not any("pixel sampler" in w for w in r2["warnings"])
     one = compare(scene, ["planes"], 0.2, settings=r2_settings,
                   **{**kw, "runs": 1, "photons": [300]})
-    assert any("pixel sampler 'r2' with one run" in w for w in one["warnings"])
+    assert any("pixel sampler 'r2', photon sampler 'independent' with one run" in w
+               for w in one["warnings"])
     assert one["results"][0]["image_variance"] == one["results"][0]["mean_variance"]
     a, b = r2["results"]
     assert a["image_variance"] == a["run_variance"] != a["mean_variance"]
     assert b["ratio"] == pytest.approx(b["run_variance"] / a["run_variance"])
+    # relVar likewise: the runs' images, not the per-pass variance.
+    assert a["relmse_from_variance"] == a["run_relmse_from_variance"]
+    per_pass = np.mean([x["relmse_from_variance"] for x in a["runs"]])
+    assert a["relmse_from_variance"] != pytest.approx(per_pass, rel=1e-9)
     ind = compare(scene, ["planes", "points"], 0.3, settings=RenderSettings(photons=300), **kw)
     a, b = ind["results"]
     assert a["image_variance"] == a["mean_variance"]
     assert b["ratio"] == pytest.approx(b["mean_variance"] / a["mean_variance"])
+    assert a["relmse_from_variance"] == pytest.approx(
+        np.mean([x["relmse_from_variance"] for x in a["runs"]]))
     assert not any("pixel sampler" in w for w in ind["warnings"])
+
+
+def test_sobol_seq_photons_compare_the_runs_images(tiny):
+    """One Sobol sequence over a run's passes (``sobol-seq``) makes them dependent as r2 does:
+    with independent pixel points, Var and relVar are still taken across the runs' images,
+    and one run warns."""
+    _, scene = tiny
+    kw = dict(runs=2, seed=5, photons=[300, 300], reference_seconds=0.3)
+    seq = RenderSettings(photons=300, photon_sampler="sobol-seq")
+    assert not seq.independent_passes and RenderSettings(photon_sampler="sobol").independent_passes
+    out = compare(scene, ["planes", "points"], 0.3, settings=seq, **kw)
+    assert out["photon_sampler"] == "sobol-seq"
+    a, b = out["results"]
+    assert a["image_variance"] == a["run_variance"] != a["mean_variance"]
+    assert b["ratio"] == pytest.approx(b["run_variance"] / a["run_variance"])
+    assert b["relmse_from_variance"] == b["run_relmse_from_variance"]
+    one = compare(scene, ["planes"], 0.2, settings=seq, **{**kw, "runs": 1, "photons": [300]})
+    assert any("photon sampler 'sobol-seq' with one run" in w for w in one["warnings"])
+    assert one["results"][0]["image_variance"] == one["results"][0]["mean_variance"]

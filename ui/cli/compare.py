@@ -133,7 +133,7 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                    help="render at W x H pixels instead of the scene's resolution")
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
                    help=f"camera rays per pixel per pass (default {DEFAULT_SPP})")
-    add_sampler_flags(p, pixel="r2", photon="sobol")
+    add_sampler_flags(p, pixel="r2", photon="sobol-seq")
     p.add_argument("--min-scatter", type=scatter_int, default=None, metavar="A",
                    help="override the scene's [render] min_scatter (>= 1)")
     p.add_argument("--max-scatter", type=scatter_int, default=None, metavar="B",
