@@ -5,15 +5,11 @@ The documents here are made up; nothing is timed.
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-spec = importlib.util.spec_from_file_location("bench_compare",
-                                              ROOT / "benchmarks" / "bench_compare.py")
-bench_compare = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(bench_compare)
+from benchmark_support import load_benchmark
+
+bench_compare = load_benchmark("bench_compare")
 
 
 def _doc(planes_hits, planes_ns, trace, ratio, extra=None):

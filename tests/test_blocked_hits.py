@@ -4,10 +4,8 @@ blocked ones, and the script prints a row per member."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
+from benchmark_support import ROOT, load_benchmark
 
 from psurf_core.camera import camera_rays
 from psurf_core.estimators import parse_estimator
@@ -19,11 +17,7 @@ from psurf_core.scene_io import load_scene
 from psurf_core.techniques.base import PassContext
 from psurf_core.trace import trace
 
-ROOT = Path(__file__).resolve().parent.parent
-spec = importlib.util.spec_from_file_location("blocked_hits",
-                                              ROOT / "benchmarks" / "blocked_hits.py")
-blocked_hits = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(blocked_hits)
+blocked_hits = load_benchmark("blocked_hits")
 
 
 def test_statuses_are_the_walks(capsys):

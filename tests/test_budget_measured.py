@@ -9,17 +9,12 @@ unlimited and a small scatter range, an MIS set, a mesh light.
 
 from __future__ import annotations
 
-import importlib.util
 import sys
-from pathlib import Path
 
 import pytest
+from benchmark_support import load_benchmark
 
-ROOT = Path(__file__).resolve().parent.parent
-spec = importlib.util.spec_from_file_location("memory_model",
-                                              ROOT / "benchmarks" / "memory_model.py")
-memory_model = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(memory_model)
+memory_model = load_benchmark("memory_model")
 
 CASES = [
     {"est": "planes", "res": [1024, 768], "photons": 100},

@@ -4,20 +4,14 @@ hit's ray meets the footprint solid."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
+from benchmark_support import ROOT, load_benchmark
 
 from psurf_core.estimators import parse_estimator
 from psurf_core.kernels.fused import fused_pass
 from psurf_core.scene_io import load_scene
 
-ROOT = Path(__file__).resolve().parent.parent
-spec = importlib.util.spec_from_file_location("cone_misses",
-                                              ROOT / "benchmarks" / "cone_misses.py")
-cone_misses = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(cone_misses)
+cone_misses = load_benchmark("cone_misses")
 
 
 def test_classification_counts_the_walkers_hits():

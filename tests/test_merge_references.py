@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from benchmark_support import ROOT, run_benchmark
 from tiny_scene import TINY
 
 from psurf_core.accumulate import Welford
@@ -17,7 +17,6 @@ from psurf_core.estimators import parse_estimator
 from psurf_core.render import RenderSettings, render_pass
 from psurf_core.scene_io import load_scene
 
-ROOT = Path(__file__).resolve().parent.parent
 PHOTONS = 120
 
 
@@ -29,8 +28,7 @@ def _render(scene_path, out, seed, passes, photons=PHOTONS):
 
 
 def _merge(*args):
-    return subprocess.run([sys.executable, str(ROOT / "benchmarks" / "merge_references.py"),
-                           *map(str, args)], cwd=ROOT, capture_output=True, text=True)
+    return run_benchmark("merge_references", *args, check=False)
 
 
 @pytest.fixture(scope="module")

@@ -6,19 +6,15 @@ Nothing here is timed: the times it measures are only checked to be there and fi
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
+
+from benchmark_support import ROOT, load_benchmark
 
 from psurf_core.kernels import fused
 from psurf_core.techniques import get_technique
 
-ROOT = Path(__file__).resolve().parent.parent
-spec = importlib.util.spec_from_file_location("pass_breakdown",
-                                              ROOT / "benchmarks" / "pass_breakdown.py")
-pass_breakdown = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(pass_breakdown)
+pass_breakdown = load_benchmark("pass_breakdown")
 
 ROW_KEYS = {"pass_ms", "pass_cpu_ms", "spans_ms", "spans_cpu_ms", "walker_ms", "walker_cpu_ms",
             "other_ms", "hits", "candidates", "hits_per_second", "threads_used",

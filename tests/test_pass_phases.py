@@ -5,19 +5,13 @@ serial image addition (``fused.accumulate``) printed beside them, within their t
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from benchmark_support import ROOT, run_benchmark
 
 
 def test_phases_and_accumulate():
-    out = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "pass_phases.py"),
-         str(ROOT / "scenes" / "area.toml"), "2", "3", "planes", "--photons", "400",
-         "--passes", "3", "--resolution", "64,48"],
-        capture_output=True, text=True, check=True, cwd=ROOT, timeout=600).stdout
+    out = run_benchmark("pass_phases", ROOT / "scenes" / "area.toml", 2, 3, "planes",
+                        "--photons", 400, "--passes", 3, "--resolution", "64,48").stdout
     wall = {m[0].strip(): float(m[1]) for m in
             re.findall(r"^  (\S.*?)\s+wall\s+(-?[\d.]+) ms", out, re.M)}
     assert {"trace", "create plane-t1t2-short", "walk plane-t1t2-short",

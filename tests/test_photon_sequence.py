@@ -5,19 +5,14 @@ spread below ``independent``'s on a scene whose photons it spreads evenly."""
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from benchmark_support import ROOT, run_benchmark
 
 
 def test_spread_per_sampler():
-    out = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "photon_sequence.py"),
-         str(ROOT / "scenes" / "area.toml"), "2", "2", "fast-multi:300:6", "--seeds", "6",
-         "--samplers", "independent,sobol-seq", "--resolution", "32,24"],
-        capture_output=True, text=True, check=True, cwd=ROOT, timeout=600).stdout
+    out = run_benchmark("photon_sequence", ROOT / "scenes" / "area.toml", 2, 2,
+                        "fast-multi:300:6", "--seeds", 6, "--samplers", "independent,sobol-seq",
+                        "--resolution", "32,24").stdout
     rows = re.findall(r"^\s*fast-multi\s+(\S+): relVar (\S+) \((\S+)x", out, re.M)
     assert [r[0] for r in rows] == ["independent", "sobol-seq"], out
     assert float(rows[0][2]) == 1.0
