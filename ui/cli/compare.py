@@ -93,15 +93,16 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
               error_vs_time.png   relMSE after every pass vs seconds
               reference.npz  the reference, when it was rendered here (reuse: --reference)
             Var: the variance of each final image relative to the first estimator's ("Var:
-            0.23x"): across the runs (--runs 2 or more) with the default --pixel-sampler r2,
-            whose passes share one low-discrepancy pattern of pixel points; else the pixel mean
-            of (per-pass variance / passes). relMSE = mean of (I - R)^2 / (R^2 + 0.01 mean(R)^2)
+            0.23x"): across the runs (--runs 2 or more) with the defaults --pixel-sampler r2
+            and --photon-sampler sobol-seq, whose passes share one low-discrepancy sequence of
+            pixel points and of photons (relVar likewise); else the pixel mean of (per-pass
+            variance / passes). relMSE = mean of (I - R)^2 / (R^2 + 0.01 mean(R)^2)
             against --reference FILE.npz, or else a path-tracer reference rendered first for
             --reference-time seconds (default 2 x --time x number of estimators).
             The image holds only the scene's [render] scatter range (--min-scatter/--max-scatter
             override it; single scattering: 1 and 1).
             Defaults: --photons auto --spp {DEFAULT_SPP} --pixel-sampler r2 \
---runs {DEFAULT_RUNS} --seed {DEFAULT_SEED}."""),
+--photon-sampler sobol-seq --runs {DEFAULT_RUNS} --seed {DEFAULT_SEED}."""),
     )
     p.add_argument("scene", metavar="SCENE.toml", help="scene file (see SCENES.md)")
     p.add_argument("--estimators", required=True, type=_specs, metavar="A,B,...",
