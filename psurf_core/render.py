@@ -130,15 +130,17 @@ def _accumulate(img: np.ndarray, pixel: np.ndarray, values: np.ndarray) -> None:
         img[:, c] += np.bincount(pixel, weights=values[:, c], minlength=n)
 
 
-def photon_draws(scene: Scene, settings: RenderSettings, batch_ss, b: int,
-                 seed: int | None, pass_index: int):
-    """What batch ``b`` of pass ``pass_index`` traces its photons from (``batch_ss``: the
-    pass's per-batch SeedSequences): the one place a pass's photons are drawn, for the pass
-    and for the inspector's coverage alike (:func:`~.photon_sampler.batch_draws`)."""
+def batch_paths(scene: Scene, settings: RenderSettings, batch_ss, b: int,
+                seed: int | None, pass_index: int, blockers: Blockers):
+    """The traced photons of batch ``b`` of pass ``pass_index`` (``batch_ss``: the pass's
+    per-batch SeedSequences; :func:`~.photon_sampler.batch_draws` by the settings' photon
+    sampler): the one place a pass's photons are drawn and traced, for the pass and for the
+    inspector's coverage alike."""
     n = min(PHOTON_BATCH, settings.photons - b * PHOTON_BATCH)
-    return batch_draws(settings.photon_sampler, np.random.default_rng(batch_ss[b]), scene, n,
-                       trace_depth(scene), seed,
-                       sequence_start(pass_index, settings.photons, b, PHOTON_BATCH))
+    draws = batch_draws(settings.photon_sampler, np.random.default_rng(batch_ss[b]), scene, n,
+                        trace_depth(scene), seed,
+                        sequence_start(pass_index, settings.photons, b, PHOTON_BATCH))
+    return trace(scene, n, draws, blockers=blockers)
 
 
 def pass_rays(scene: Scene, settings: RenderSettings, seed: int, pass_index: int, ray_rng,
@@ -179,9 +181,7 @@ def photon_pass(
     n_batches = -(-settings.photons // PHOTON_BATCH)
     batch_ss = photon_ss.spawn(n_batches)
     for b in range(n_batches):
-        n = min(PHOTON_BATCH, settings.photons - b * PHOTON_BATCH)
-        paths = trace(scene, n, photon_draws(scene, settings, batch_ss, b, seed, pass_index),
-                      blockers=blockers)
+        paths = batch_paths(scene, settings, batch_ss, b, seed, pass_index, blockers)
         if record is not None:
             record.paths.append(paths)
         for group, full_group in estimator.sets:

@@ -9,14 +9,13 @@ from ..geometry import blockers_of
 from ..render import (
     PHOTON_BATCH,
     RenderSettings,
+    batch_paths,
     kernel_radius,
     pass_generators,
     pass_rays,
-    photon_draws,
 )
 from ..scene import Scene
 from ..techniques.base import PassContext, Primitives, take
-from ..trace import trace
 from .pixel import photon_estimator
 
 __all__ = ["primitive_pixels"]
@@ -59,9 +58,7 @@ def primitive_pixels(scene: Scene, estimator, seed: int, pass_index: int, techni
     if not 0 <= batch < n_batches:
         raise ValueError(f"batch {batch} does not exist (the pass has {n_batches})")
     batch_ss = photon_ss.spawn(n_batches)
-    n = min(PHOTON_BATCH, settings.photons - batch * PHOTON_BATCH)
-    paths = trace(scene, n, photon_draws(scene, settings, batch_ss, batch, seed, pass_index),
-                  blockers=blockers)
+    paths = batch_paths(scene, settings, batch_ss, batch, seed, pass_index, blockers)
     ctx = PassContext(scene, blockers, kernel_radius(tech, scene, settings, pass_index),
                       pass_index, settings.max_pairs)
     prims = tech.create(paths, ctx)
