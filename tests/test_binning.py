@@ -93,7 +93,8 @@ def test_random_parallelograms_conservative():
     from psurf_core.techniques.planes import PlaneGeometry
     from psurf_core.techniques.surface_common import solve_columns
 
-    data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1, own=0.0, beta=1.0, clear=0.0,
+    data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1, own=0.0, beta=1.0,
+                 clear=0.0, line=0.0,
                  **solve_columns(scene, x2, w2, w1))
     prims = Primitives("planes", np.zeros(m, np.int64), np.full(m, 2), lo, hi, data,
                        hull=wedge_hull(scene, x2, w2, w1, T2, T1))

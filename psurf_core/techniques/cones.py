@@ -29,6 +29,7 @@ from ..kernels.vec import madd, scale, sub
 from ..path_record import with_t1, with_w1
 from ..records import Vec, table
 from . import grids
+from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, dot, segments_clear
 from .surface_common import (
     NDP_MIN,
@@ -54,6 +55,8 @@ class ConeGeometry(NamedTuple):
     c1: float  # cos th1 = w1 . w2 of the photon's own w1
     T1: float  # the photon's sampled flight from x1
     beta: Vec  # beta_1^- (W)
+    clear: float  # 1: no blocker can block x1 -> x0 of any hit (shadow_cull.hull_clear of
+    # the footprint: the apex and the ring about the base at the reach)
 
 
 class ConeHit(NamedTuple):
@@ -123,13 +126,14 @@ def segments(G, x0, hit):
 
 
 def visibility(G, x0, hit, medium, blockers):
-    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box)."""
-    return segments_clear(blockers, (G.x1, x0))
+    """(H,) bool: ``x1 -> x0`` unoccluded (``x1`` is the photon's own vertex: in the box),
+    tested where the cone's ``clear`` flag does not already say so."""
+    return segments_clear(blockers, (G.x1, x0), known=G.clear != 0.0)
 
 
 @twin(visibility, inline=True)
 def _visibility(G, x0, hit, medium, blockers):
-    return status(G.x1, x0, blockers), CLEAR, CLEAR
+    return CLEAR if G.clear != 0.0 else status(G.x1, x0, blockers), CLEAR, CLEAR
 
 
 def contribution(G, psi, s, s_min, hit, short, medium):
@@ -221,10 +225,15 @@ class PhotonCone(Technique):
         # Footprint: the apex and a ring circumscribing the base circle at slant length L.
         L = g["T1"] if self.short else box_reach(ctx.scene, g["x1"])
         base = ring(g["x1"] + (L * c1)[:, None] * g["w2"], g["w2"], L * s1)
+        cloud = np.concatenate([g["x1"][:, None], base], axis=1)
+        # x0 lies on the nappe within the slant length L (short: t1 < T1; long: x0 in the
+        # box), so every segment x1 -> x0 lies in the hull of the footprint.
+        clear = cull.hull_clear(ctx.blockers, ctx.scene,
+                                [cloud[:, i] for i in range(cloud.shape[1])])
         return Primitives(self.name, photon, K, lo, hi,
                           table(ConeGeometry, x1=g["x1"], w2=g["w2"], c1=c1, T1=g["T1"],
-                                beta=beta1(paths, photon, K)),
-                          cloud=np.concatenate([g["x1"][:, None], base], axis=1))
+                                beta=beta1(paths, photon, K), clear=clear),
+                          cloud=cloud)
 
     def scaled_normal(self, rec):
         """(H, 3) scaled normal on records ``rec`` (the inspector's)."""

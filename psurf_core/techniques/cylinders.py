@@ -61,6 +61,7 @@ class CylinderGeometry(NamedTuple):
     beta: Vec  # beta_1^- (W)
     clear: float  # 1: no blocker can block x1* -> x0 of any hit (shadow_cull.hull_clear of
     # the footprint's rings and the axis from x2: x0 on the surface, x1* on the axis)
+    line: float  # 1: no blocker can block x2 -> x1* of any hit (shadow_cull.line_clear)
 
 
 class CylinderHit(NamedTuple):
@@ -212,12 +213,14 @@ class PhotonCylinder(Technique):
         h1 = h0 + g["T2"] if self.short else np.maximum(box_reach(ctx.scene, x2, w2), h0)
         cloud = np.concatenate([ring(x2 + h0[:, None] * w2, w2, T1 * s1),
                                 ring(x2 + h1[:, None] * w2, w2, T1 * s1)], axis=1)
+        # x1* = x2 + t2* w2 with t2* < T2 (short) or within the box's extent along w2 (long).
+        reach = g["T2"] if self.short else h1
         return Primitives(self.name, photon, K, lo, hi, cloud=cloud, data=table(
             CylinderGeometry, x2=x2, w2=w2, c1=c1, s1=s1, T1=T1, T2=g["T2"],
             own=own_segment(paths, photon, K - 1, x2, ctx.scene), beta=beta1(paths, photon, K),
             clear=cull.hull_clear(ctx.blockers, ctx.scene, [
-                *(cloud[:, i] for i in range(cloud.shape[1])), x2,
-                x2 + (g["T2"] if self.short else h1)[:, None] * w2])))
+                *(cloud[:, i] for i in range(cloud.shape[1])), x2, x2 + reach[:, None] * w2]),
+            line=cull.line_clear(ctx.blockers, ctx.scene, x2, w2, reach)))
 
     def scaled_normal(self, rec):
         """(H, 3) scaled normal on records ``rec`` (the inspector's)."""

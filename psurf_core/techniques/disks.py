@@ -25,6 +25,7 @@ from ..kernels.vec import madd, scale, sub
 from ..records import Vec, table
 from ..sampling import phase_value
 from . import grids
+from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, cross, dot
 from .cones import reconstruct, segments, visibility  # the path x1 + t1 w1, its segment x1 -> x0
 from .surface_common import (
@@ -53,6 +54,8 @@ class DiskGeometry(NamedTuple):
     e_ph: Vec  # the half-plane's normal w2 x e_r
     T1: float  # the photon's flight from x1 (the short disk's radius)
     beta: Vec  # beta_1^- (W)
+    clear: float  # 1: no blocker can block x1 -> x0 of any hit (shadow_cull.box_clear of
+    # the bounds, which hold x1 and every hit)
 
 
 class DiskHit(NamedTuple):
@@ -181,7 +184,8 @@ class PhotonDisk(Technique):
         lo, hi = clip_bounds(ctx.scene, lo, hi)
         return Primitives(self.name, photon, K, lo, hi,
                           table(DiskGeometry, x1=x1, w2=w2, e_r=e_r, e_ph=cross(w2, e_r),
-                                T1=T1, beta=beta1(paths, photon, K)))
+                                T1=T1, beta=beta1(paths, photon, K),
+                                clear=cull.box_clear(ctx.blockers, ctx.scene, lo, hi)))
 
     def scaled_normal(self, rec):
         """(H, 3) scaled normal on records ``rec`` (the inspector's)."""

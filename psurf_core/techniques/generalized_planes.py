@@ -37,6 +37,7 @@ from ..kernels.vec import madd
 from ..path_record import with_t1, with_t2, with_t3
 from ..records import Vec, table
 from . import grids
+from . import shadow_cull as cull
 from .base import (
     Compiled,
     Primitives,
@@ -80,6 +81,9 @@ class GPlaneGeometry(NamedTuple):
     m1: Vec
     m2: Vec
     sdet: float
+    clear0: float  # 1: no blocker can block x3 -> x2* of any hit (shadow_cull.line_clear)
+    clear1: float  # ... x2* -> x1* (shadow_cull.plane_clear)
+    clear2: float  # ... x1* -> x0 (plane_clear, t1t3; swept_clear, t2t3)
 
 
 class GPlaneHit(NamedTuple):
@@ -149,26 +153,29 @@ def segments(G, x0, hit):
 
 def visibility(G, x0, hit, medium, blockers):
     """(H,) bool: ``x3 -> x2*`` counts (own segment, or ``x2*`` in the box and clear),
-    ``x1*`` is in the box, and ``x2* -> x1* -> x0`` are unoccluded."""
+    ``x1*`` is in the box, and ``x2* -> x1* -> x0`` are unoccluded (each segment tested where
+    the plane's ``clear0`` / ``clear1`` / ``clear2`` flag does not already say so)."""
     x2, x1 = vertices(G, hit)
     known = (G.own != 0.0) & (hit.t3 < G.Tu)
-    ok = rebuilt_clear(G.x3, x2, known, medium, blockers)
+    ok = rebuilt_clear(G.x3, x2, known, G.clear0 != 0.0, medium, blockers)
     ok &= inside_box(x1, medium.bounds_min, medium.bounds_max)
-    return segments_clear(blockers, (x2, x1), (x1, x0), ok=ok)
+    ok = segments_clear(blockers, (x2, x1), ok=ok, known=G.clear1 != 0.0)
+    return segments_clear(blockers, (x1, x0), ok=ok, known=G.clear2 != 0.0)
 
 
 @twin(visibility, inline=True)
 def _visibility(G, x0, hit, medium, blockers):
     x2, x1 = vertices(G, hit)
-    st0 = rebuilt_clear(G.x3, x2, G.own != 0.0 and hit.t3 < G.Tu, medium, blockers)
+    st0 = rebuilt_clear(G.x3, x2, G.own != 0.0 and hit.t3 < G.Tu, G.clear0 != 0.0, medium,
+                        blockers)
     if st0 == BLOCKED:
         return BLOCKED, CLEAR, CLEAR
     if not inside_box(x1, medium.bounds_min, medium.bounds_max):
         return st0, BLOCKED, CLEAR
-    st1 = status(x2, x1, blockers)
+    st1 = CLEAR if G.clear1 != 0.0 else status(x2, x1, blockers)
     if st1 == BLOCKED:
         return st0, BLOCKED, CLEAR
-    return st0, st1, status(x1, x0, blockers)
+    return st0, st1, CLEAR if G.clear2 != 0.0 else status(x1, x0, blockers)
 
 
 def contribution(G, psi, s, s_min, hit, short, medium):
@@ -291,8 +298,33 @@ class GeneralizedPlane(Technique):
         data = table(GPlaneGeometry, origin=origin, w3=u, v=v, Tu=Tu, Tv=Tv, x3=g["x3"],
                      w2=g["w2"], w1=g["w1"], T2=g["T2"], fixed=float(self.which == "t1t3"),
                      own=own_segment(paths, photon, K - 2, g["x3"], ctx.scene),
-                     beta=beta1(paths, photon, K), **solve_columns(ctx.scene, origin, u, v))
+                     beta=beta1(paths, photon, K), **solve_columns(ctx.scene, origin, u, v),
+                     **self._clear_flags(ctx, g, origin, Tu, Tv))
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
+
+    def _clear_flags(self, ctx, g, origin, Tu, Tv) -> dict:
+        """The ``clear0..2`` columns (:mod:`.shadow_cull`): ``x2* = x3 + t3 w3`` with ``t3``
+        up to ``Tu`` (short) or the box's diagonal (long: ``x3`` and ``x2*`` in the box), and
+        likewise ``tv``; ``x1*`` is ``x2* + T2 w2`` (t1t3) or ``x2* + tv w2`` (t2t3), and
+        ``x0`` is ``x1* + tv w1`` (t1t3: from the edge ``origin + [0, Tu] w3``) or
+        ``x1* + T1 w1`` (t2t3: from the parallelogram ``x3 + [0, Tu] w3 + [0, Tv] w2``)."""
+        scene, bl = ctx.scene, ctx.blockers
+        x3, u, w2, w1 = g["x3"], g["w3"], g["w2"], g["w1"]
+        if self.short:
+            ru, rv = Tu, Tv
+        else:
+            diag = np.linalg.norm(scene.medium.bounds_max - scene.medium.bounds_min)
+            ru = rv = np.full(x3.shape[0], diag)
+        t1t3 = self.which == "t1t3"
+        clear1 = cull.plane_clear(bl, scene, x3, u, w2, ru, g["T2"] if t1t3 else rv)
+        if t1t3:
+            clear2 = cull.plane_clear(bl, scene, origin, u, w1, ru, rv)
+        else:
+            a, b = x3 + ru[:, None] * u, x3 + rv[:, None] * w2
+            clear2 = cull.swept_clear(bl, scene, [x3, a, b, a + rv[:, None] * w2], w1,
+                                      g["T1"])
+        return dict(clear0=cull.line_clear(bl, scene, x3, u, ru), clear1=clear1,
+                    clear2=clear2)
 
     def scaled_normal(self, rec):
         """(H, 3) scaled normal on records ``rec`` (the inspector's)."""

@@ -74,6 +74,7 @@ class PlaneGeometry(NamedTuple):
     m2: Vec
     sdet: float
     clear: float  # 1: no blocker can block x1* -> x0 of any hit (shadow_cull.plane_clear)
+    line: float  # 1: no blocker can block x2 -> x1* of any hit (shadow_cull.line_clear)
 
 
 class PlaneHit(NamedTuple):
@@ -122,18 +123,19 @@ def segments(G, x0, hit):
 
 def visibility(G, x0, hit, medium, blockers):
     """(H,) bool: ``x2 -> x1*`` counts (own segment, or ``x1*`` in the box and clear) and
-    ``x1* -> x0`` is unoccluded (tested where the plane's ``clear`` flag does not already say
-    so)."""
+    ``x1* -> x0`` is unoccluded (each tested where the plane's ``line`` / ``clear`` flag does
+    not already say so)."""
     x1 = G.x2 + hit.t2[:, None] * G.w2
     known = (G.own != 0.0) & (hit.t2 < G.T2)
     return segments_clear(blockers, (x1, x0), known=G.clear != 0.0,
-                          ok=rebuilt_clear(G.x2, x1, known, medium, blockers))
+                          ok=rebuilt_clear(G.x2, x1, known, G.line != 0.0, medium, blockers))
 
 
 @twin(visibility, inline=True)
 def _visibility(G, x0, hit, medium, blockers):
     x1 = madd(G.x2, hit.t2, G.w2)
-    st0 = rebuilt_clear(G.x2, x1, G.own != 0.0 and hit.t2 < G.T2, medium, blockers)
+    st0 = rebuilt_clear(G.x2, x1, G.own != 0.0 and hit.t2 < G.T2, G.line != 0.0, medium,
+                        blockers)
     st1 = CLEAR if st0 == BLOCKED or G.clear != 0.0 else status(x1, x0, blockers)
     return st0, st1, CLEAR
 
@@ -262,7 +264,8 @@ class PhotonPlane(Technique):
         data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1,
                      own=own,
                      beta=beta1(paths, photon, K), **solve_columns(scene, x2, w2, w1),
-                     clear=cull.plane_clear(ctx.blockers, scene, x2, w2, w1, *reach))
+                     clear=cull.plane_clear(ctx.blockers, scene, x2, w2, w1, *reach),
+                     line=cull.line_clear(ctx.blockers, scene, x2, w2, reach[0]))
         return Primitives(self.name, photon, K, lo, hi, data, hull=hull)
 
     def scaled_normal(self, rec):

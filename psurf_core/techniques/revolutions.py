@@ -94,13 +94,13 @@ def visibility(G, x0, hit, medium, blockers):
     x1 = G.x2 + G.T2[:, None] * hit.w2
     known = np.zeros(x1.shape[0], dtype=bool)
     return segments_clear(blockers, (x1, x0),
-                          ok=rebuilt_clear(G.x2, x1, known, medium, blockers))
+                          ok=rebuilt_clear(G.x2, x1, known, False, medium, blockers))
 
 
 @twin(visibility)
 def _visibility(G, x0, hit, medium, blockers):
     x1 = madd(G.x2, G.T2, hit.w2)
-    st0 = rebuilt_clear(G.x2, x1, False, medium, blockers)
+    st0 = rebuilt_clear(G.x2, x1, False, False, medium, blockers)
     st1 = CLEAR if st0 == BLOCKED else status(x1, x0, blockers)
     return st0, st1, CLEAR
 

@@ -132,17 +132,41 @@ def hull_clear(blockers, scene, points) -> np.ndarray:
     return clear(misses(blockers, points), away(blockers, scene, points, points))
 
 
+def box_clear(blockers, scene, lo, hi) -> np.ndarray:
+    """:func:`hull_clear` of the boxes ``[lo, hi]`` ((M, 3) each): 1.0 where no blocker can
+    block a segment between two points of a primitive's box (photon spheres and disks: the
+    vertex ``x1`` and every hit ``x0`` lie in their clipped bounds)."""
+    corners = [np.where(np.array([(i >> k) & 1 for k in range(3)], bool), hi, lo)
+               for i in range(8)]
+    return hull_clear(blockers, scene, corners)
+
+
+def swept_clear(blockers, scene, region, direction, reach) -> np.ndarray:
+    """(M,) float: 1.0 where no blocker can block a segment that starts in the hull of
+    ``region`` (a sequence of (M, 3) arrays) and runs along the fixed unit ``direction``
+    (M, 3) for at most ``reach`` (M,): the hull of the starts and their ends is apart from
+    every blocker's box, or leaves a quad's plane, or lies strictly on one side of it."""
+    if _untested(blockers):
+        return np.zeros(region[0].shape[0])
+    hull = list(region) + [r + reach[:, None] * direction for r in region]
+    return clear(misses(blockers, hull), leaves(blockers, scene, region, direction),
+                 away(blockers, scene, region, hull))
+
+
+def line_clear(blockers, scene, start, direction, reach) -> np.ndarray:
+    """(M,) float: 1.0 where no blocker can block ``start -> start + t direction`` for any
+    ``0 < t <= reach``: the rebuilt segment from a photon's kept vertex along its kept
+    direction to a vertex found by the hit (photon planes' ``x2 -> x1*``, generalized planes'
+    ``x3 -> x2*``), tested per hit only where the photon's own segment does not cover it."""
+    return swept_clear(blockers, scene, [start], direction, reach)
+
+
 def plane_clear(blockers, scene, x2, w2, w1, reach2, reach1) -> np.ndarray:
     """The ``clear`` flag of photon planes (:mod:`.planes`): (M,) float, 1.0 where no blocker
     can block the segment ``x1* -> x0`` of any of a plane's hits. ``x1*`` lies on the edge
     ``x2 + [0, reach2] w2``, and the segment runs from it along the fixed ``w1`` (out to
     ``reach1``), inside the parallelogram the two span."""
-    if _untested(blockers):
-        return np.zeros(x2.shape[0])
-    edge = [x2, x2 + reach2[:, None] * w2]
-    par = edge + [e + reach1[:, None] * w1 for e in edge]
-    return clear(misses(blockers, par), leaves(blockers, scene, edge, w1),
-                 away(blockers, scene, edge, par))
+    return swept_clear(blockers, scene, [x2, x2 + reach2[:, None] * w2], w1, reach1)
 
 
 def strip_clear(blockers, scene, start, A, amax, wK, reach_p, reach_s, k3, d2, R, w2):

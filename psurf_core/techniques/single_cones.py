@@ -100,7 +100,10 @@ class SingleCone(SingleScatter):
         lo, hi = sweep_bounds(d["x1"], c[:, None] * a - spread, c[:, None] * a + spread,
                               d["T1"] if self.short else None)
         return self._prims(photon, lo, hi, ctx, table(
-            ConeGeometry, x1=d["x1"], w2=a, c1=c, T1=d["T1"], beta=d["beta"]))
+            ConeGeometry, x1=d["x1"], w2=a, c1=c, T1=d["T1"], beta=d["beta"],
+            # Not culled: the apex is the light point, which an area light's own quad holds
+            # in its plane, where shadow_cull cannot decide; every hit is tested.
+            clear=0.0))
 
     def scaled_normal(self, rec):
         """(H, 3) ``t (a - c w)`` on records ``rec`` (the inspector's)."""

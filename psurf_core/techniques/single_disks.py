@@ -51,6 +51,8 @@ class DiskGeometry(NamedTuple):
     one_sided: float  # 1: area / mesh light (the front quarter only)
     kind: float  # light kind code (the emission pdf's)
     beta: Vec  # beta0 = Phi / P_L (W)
+    clear: float  # 0: every hit's segment from the light point is tested (not culled: an
+    # area light's own quad holds that point in its plane, where shadow_cull cannot decide)
 
 
 class DiskHit(NamedTuple):
@@ -179,7 +181,8 @@ class SingleDisk(SingleScatter):
         dmin, dmax = arc_range(a, er, np.where(d["one_sided"] != 0.0, 0.5 * np.pi, np.pi))
         lo, hi = sweep_bounds(d["x1"], dmin, dmax, d["T1"] if self.short else None)
         return self._prims(photon, lo, hi, ctx,
-                           table(DiskGeometry, **columns(DiskGeometry, d, eph=eph, er=er)))
+                           table(DiskGeometry, **columns(DiskGeometry, d, eph=eph, er=er,
+                                                         clear=0.0)))
 
     def scaled_normal(self, rec):
         """(H, 3) ``t (w x a) / sin^2`` on records ``rec`` (the inspector's)."""

@@ -39,6 +39,8 @@ class SphereGeometry(NamedTuple):
     one_sided: float  # 1: area / mesh light (the front hemisphere only)
     kind: float  # light kind code (the emission pdf's)
     beta: Vec  # beta0 = Phi / P_L (W)
+    clear: float  # 0: every hit's segment from the light point is tested (not culled: an
+    # area light's own quad holds that point in its plane, where shadow_cull cannot decide)
 
 
 class SphereHit(NamedTuple):
@@ -148,7 +150,7 @@ class SingleSphere(SingleScatter):
         dmin = np.where(hemi & (n > 0), -side, -1.0)
         lo, hi = sweep_bounds(d["x1"], dmin, dmax, d["T1"])
         return self._prims(photon, lo, hi, ctx,
-                           table(SphereGeometry, **columns(SphereGeometry, d)))
+                           table(SphereGeometry, **columns(SphereGeometry, d, clear=0.0)))
 
     def scaled_normal(self, rec):
         """(H, 3) ``t^2 w`` on records ``rec`` (the inspector's)."""

@@ -25,6 +25,7 @@ from ..path_record import with_w1
 from ..records import Vec, table
 from ..sampling import phase_value
 from . import grids
+from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, dot
 from .cones import segments, visibility  # the path's one segment x1 -> x0
 from .surface_common import (
@@ -46,6 +47,8 @@ class SphereGeometry(NamedTuple):
     w2: Vec  # the direction that arrived at x1 (the phase function's axis)
     T1: float  # radius: the photon's sampled flight from x1
     beta: Vec  # beta_1^- (W)
+    clear: float  # 1: no blocker can block x1 -> x0 of any hit (shadow_cull.box_clear of
+    # the bounds, which hold x1 and every hit)
 
 
 class SphereHit(NamedTuple):
@@ -161,7 +164,8 @@ class PhotonSphere(Technique):
         lo, hi = clip_bounds(ctx.scene, x1 - T1[:, None], x1 + T1[:, None])
         return Primitives(self.name, photon, K, lo, hi,
                           table(SphereGeometry, x1=x1, w2=g["w2"], T1=T1,
-                                beta=beta1(paths, photon, K)))
+                                beta=beta1(paths, photon, K),
+                                clear=cull.box_clear(ctx.blockers, ctx.scene, lo, hi)))
 
     def scaled_normal(self, rec):
         """(H, 3) scaled normal on records ``rec`` (the inspector's)."""

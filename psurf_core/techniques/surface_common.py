@@ -132,15 +132,17 @@ def own_segment(paths, photon: np.ndarray, j: np.ndarray, start: np.ndarray,
     return own.astype(float)
 
 
-def rebuilt_clear(a, b, known, medium, blockers):
+def rebuilt_clear(a, b, known, line, medium, blockers):
     """(H,) bool: the segment ``a -> b`` to a rebuilt vertex ``b`` counts: ``known`` clear
-    (on the photon's own segment), or ``b`` inside the box and the segment unoccluded."""
+    (on the photon's own segment), or ``b`` inside the box and the segment unoccluded, which
+    ``line`` (bool, scalar or (H,): :func:`.shadow_cull.line_clear` said no blocker can block
+    any segment from ``a`` along its direction) answers without a test."""
     ok = known.copy()
     idx = np.flatnonzero(~known)
     if idx.size:
         inb = inside_box(b[idx], medium.bounds_min, medium.bounds_max)
-        res = np.zeros(idx.size, dtype=bool)
-        k = np.flatnonzero(inb)
+        res = inb & np.broadcast_to(line, known.shape)[idx]
+        k = np.flatnonzero(inb & ~res)
         if k.size:
             res[k] = ~blockers.occluded(a[idx][k], b[idx][k])
         ok[idx] = res
@@ -148,12 +150,14 @@ def rebuilt_clear(a, b, known, medium, blockers):
 
 
 @twin(rebuilt_clear, inline=True)
-def _rebuilt_clear(a, b, known, medium, blockers):
+def _rebuilt_clear(a, b, known, line, medium, blockers):
     """The segment's shadow status (``kernels.shadow``)."""
     if known:
         return CLEAR
     if not inside_box(b, medium.bounds_min, medium.bounds_max):
         return BLOCKED
+    if line:
+        return CLEAR
     return status(a, b, blockers)
 
 
