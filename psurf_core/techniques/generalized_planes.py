@@ -313,8 +313,7 @@ class GeneralizedPlane(Technique):
         if self.short:
             ru, rv = Tu, Tv
         else:
-            diag = np.linalg.norm(scene.medium.bounds_max - scene.medium.bounds_min)
-            ru = rv = np.full(x3.shape[0], diag)
+            ru = rv = np.full(x3.shape[0], scene.medium.diagonal)
         t1t3 = self.which == "t1t3"
         clear1 = cull.plane_clear(bl, scene, x3, u, w2, ru, g["T2"] if t1t3 else rv)
         if t1t3:

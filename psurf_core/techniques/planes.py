@@ -258,8 +258,7 @@ class PhotonPlane(Technique):
         hull = (wedge_hull(scene, start, w2, w1, la, T1) if self.short
                 else wedge_hull(scene, x2, w2, w1))
         # Long: x1* and x0 in the box, so t2* and t1* are at most its diagonal.
-        diag = np.full(x2.shape[0], np.linalg.norm(scene.medium.bounds_max
-                                                    - scene.medium.bounds_min))
+        diag = np.full(x2.shape[0], scene.medium.diagonal)
         reach = (T2, T1) if self.short else (diag, diag)
         data = table(PlaneGeometry, x2=x2, w2=w2, w1=w1, T2=T2, T1=T1,
                      own=own,
