@@ -95,6 +95,10 @@ def test_allocated_set_with_a_numpy_member_is_unbiased():
     ("study_area", (1, 1), "fast-single", "paper-single"),
     ("point", (1, 1), "fast-single", "paper-single"),
     ("mesh_light", (1, 1), "fast-single", "paper-single"),
+    # fast-full's single-scattering set for a mesh light, every member on a share
+    # (MESH_SINGLE_SHARE); its multiple-scattering set is left out (nothing at K = 1).
+    ("mesh_light", (1, 1), "fast-full~plane-t1t2-short~plane-t2t3-short~cone-short",
+     "paper-single"),
     # 2 s warm, but ~85 s of numba compiling on a fresh clone (walkers for a mesh and a
     # point light together): make test-slow.
     pytest.param("mesh_light+point", (1, 1), "fast-single", "paper-single",
@@ -118,3 +122,26 @@ def test_fast_presets_agree_with_the_papers(name, k, fast, paper):
                     camera=replace(scene.camera, width=16, height=12))
     a, b = _sums(scene, fast, 30, 800), _sums(scene, paper, 30, 400)
     assert abs(_z(a, b)) < 4.0, (a.mean(), b.mean())
+
+
+def test_fast_full_gives_a_mesh_lights_single_scattering_a_share():
+    """``fast-full`` sums two sets; for a mesh light its single-scattering members sweep
+    :data:`MESH_SINGLE_SHARE` of the photons (they cost most of a pass for little of the
+    error, docs/vs_mitsuba.md); ``fast-single`` keeps them on every photon, and a point
+    light beside the mesh keeps the sphere they share on every photon."""
+    from psurf_core.estimators import MESH_SINGLE_SHARE
+
+    mesh = load_scene(SCENES / "mesh_light.toml")
+    s = f"@{MESH_SINGLE_SHARE:g}"
+    full = parse_estimator("fast-full", mesh)
+    assert [t.label for t in full.groups[0]] == [
+        "ss-sphere" + s, "ss-cone" + s, "ss-disk-short" + s]
+    assert [t.label for t in full.groups[1]] == [  # the multiple-scattering set as before
+        "plane-t1t2-short", "plane-t2t3-short@0.3", "cone-short@0.2"]
+    assert [t.label for t in parse_estimator("fast-single", mesh).techniques] == [
+        "ss-sphere", "ss-cone", "ss-disk-short"]
+    both = replace(mesh, lights=(*mesh.lights,
+                                 *load_scene(SCENES / "point.toml").lights))
+    labels = [t.label for t in parse_estimator("fast-full", both).groups[0]]
+    assert labels == ["ss-sphere", "ss-cone-short", "ss-cone" + s, "ss-disk",
+                      "ss-disk-short" + s]
