@@ -249,24 +249,25 @@ def _paper_multi():
 #: equal CPU time on four area-light scenes, with the Var within 0.94-1.26x.
 AREA_DISK_SHARE, AREA_SPHERE_SHARE = 0.45, 0.15
 
-#: ``fast-full``'s share of the photons for a mesh light's single-scattering members (the
-#: sphere, cone and short disk), summed with the multiple-scattering set that sweeps every
-#: photon. Two summed sets of per-photon costs ``c1, c2`` and per-photon variances ``v1, v2``
-#: are best served when the first sweeps ``sqrt((v1 / c1) / (v2 / c2))`` of the photons:
-#: measured 2026-12-06 (docs/vs_mitsuba.md, "A share for the single-scattering set"),
-#: ~0.23 on ``mesh_light`` and ~0.011 on ``dense_mesh_light``, where the mesh set took
-#: 6/7 of a pass for ~1 % of the error. The cost model is flat about its optimum: this share
-#: is within ~4 % of the best on the first and gives the second ~0.26x the variance at
-#: equal time (sets on every photon: 1x).
-MESH_SINGLE_SHARE = 0.15
+#: ``fast-full``'s share of the photons for the single-scattering members of a point and of
+#: a mesh light (sphere, short cone and disk; sphere, cone and short disk), summed with the
+#: multiple-scattering set that sweeps every photon. Two summed sets of per-photon costs
+#: ``c1, c2`` and per-photon variances ``v1, v2`` are best served when the first sweeps
+#: ``sqrt((v1 / c1) / (v2 / c2))`` of the photons; measured 2026-12-06 (docs/vs_mitsuba.md,
+#: "A share for single scattering in fast-full"): ~0.23 on ``mesh_light`` and ~0.011 on
+#: ``dense_mesh_light``, where the mesh light's set took 6/7 of a pass for ~1 % of the error;
+#: ~0.27 on ``point``. The cost model is flat about its optimum, so one share per kind
+#: serves scenes whose optima differ by 20x. An area light's members keep their shares
+#: (its optimum, ~0.45 on ``area``, gained 0.87x in the model: not worth a fourth share).
+FULL_SINGLE_SHARES = {"mesh": 0.15, "point": 0.3}
 
 ALL_KINDS = ("point", "area", "mesh")
 
 
-def _fast_single(kinds=ALL_KINDS, mesh_share: float = 1.0):
+def _fast_single(kinds=ALL_KINDS, shares: dict | None = None):
     """Single scattering tuned for equal time (docs/study.md, docs/vs_mitsuba.md), by light
-    kind, for a scene whose lights are of ``kinds``; a mesh light's members sweep
-    ``mesh_share`` of the photons (``fast-full``: :data:`MESH_SINGLE_SHARE`):
+    kind, for a scene whose lights are of ``kinds``; a point or a mesh light's members sweep
+    ``shares[kind]`` of the photons (default all; ``fast-full``: :data:`FULL_SINGLE_SHARES`):
 
     * an area light: its three single-scattering planes (the two swept along the ray
       short), the disk on :data:`AREA_DISK_SHARE` and the sphere on
@@ -277,22 +278,25 @@ def _fast_single(kinds=ALL_KINDS, mesh_share: float = 1.0):
       ``paper-single``'s relMSE with the planes, 0.8x with these);
     * a point light: the sphere, short cone and disk.
 
-    A technique is one member of the set, with one share: where a point (disk) or a point or
-    mesh light (sphere) shares the scene with an area light, the area light's disk or sphere
-    sweeps every photon with theirs.
+    A technique is one member of the set, with one share: where lights of several kinds
+    share the disk (point, area) or the sphere (all three), it sweeps the largest share any
+    of them asks for.
     """
     point, area, mesh = ("point",), ("area",), ("mesh",)
-    disk = f"ss-disk@{1 if 'point' in kinds else AREA_DISK_SHARE:g}"
-    # The sphere serves every kind: it sweeps the largest share any of them asks for.
-    wants = {"point": 1.0, "mesh": mesh_share, "area": AREA_SPHERE_SHARE}
-    sphere = f"ss-sphere@{max(wants[k] for k in kinds):g}"
+    own = {"point": 1.0, "mesh": 1.0, **(shares or {})}
+
+    def share(name, **wants):  # (a member none of whose kinds is here is dropped later)
+        most = max((wants[k] for k in kinds if k in wants), default=1.0)
+        return _check_member(f"{name}@{most:g}")
+
     return (*(_only(_check_member(n), area) for n in ("ss-plane-uv", "ss-plane-ut-short",
                                                      "ss-plane-vt-short")),
-            _only(_check_member(sphere), point + mesh + area),
-            _only(get_technique("ss-cone-short"), point),
-            _only(_check_member(f"ss-cone@{mesh_share:g}"), mesh),
-            _only(_check_member(disk), point + area),
-            _only(_check_member(f"ss-disk-short@{mesh_share:g}"), mesh))
+            _only(share("ss-sphere", point=own["point"], mesh=own["mesh"],
+                        area=AREA_SPHERE_SHARE), point + mesh + area),
+            _only(_check_member(f"ss-cone-short@{own['point']:g}"), point),
+            _only(_check_member(f"ss-cone@{own['mesh']:g}"), mesh),
+            _only(share("ss-disk", point=own["point"], area=AREA_DISK_SHARE), point + area),
+            _only(_check_member(f"ss-disk-short@{own['mesh']:g}"), mesh))
 
 
 #: ``fast-multi``'s strips (``plane-ut-short``, ``plane-vt-short``) for area lights: a strip
@@ -360,7 +364,7 @@ def register_presets() -> None:
     PRESETS["fast-single"] = _preset(lambda kinds, scene: [_fast_single(kinds)])
     PRESETS["fast-multi"] = _preset(lambda kinds, scene: [_fast_multi(kinds, scene)])
     PRESETS["fast-full"] = _preset(lambda kinds, scene: [
-        _fast_single(kinds, MESH_SINGLE_SHARE), _fast_multi(kinds, scene)])
+        _fast_single(kinds, FULL_SINGLE_SHARES), _fast_multi(kinds, scene)])
 
 
 register_presets()

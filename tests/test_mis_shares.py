@@ -96,7 +96,7 @@ def test_allocated_set_with_a_numpy_member_is_unbiased():
     ("point", (1, 1), "fast-single", "paper-single"),
     ("mesh_light", (1, 1), "fast-single", "paper-single"),
     # fast-full's single-scattering set for a mesh light, every member on a share
-    # (MESH_SINGLE_SHARE); its multiple-scattering set is left out (nothing at K = 1).
+    # (FULL_SINGLE_SHARES); its multiple-scattering set is left out (nothing at K = 1).
     ("mesh_light", (1, 1), "fast-full~plane-t1t2-short~plane-t2t3-short~cone-short",
      "paper-single"),
     # 2 s warm, but ~85 s of numba compiling on a fresh clone (walkers for a mesh and a
@@ -126,13 +126,13 @@ def test_fast_presets_agree_with_the_papers(name, k, fast, paper):
 
 def test_fast_full_gives_a_mesh_lights_single_scattering_a_share():
     """``fast-full`` sums two sets; for a mesh light its single-scattering members sweep
-    :data:`MESH_SINGLE_SHARE` of the photons (they cost most of a pass for little of the
+    ``FULL_SINGLE_SHARES['mesh']`` of the photons (they cost most of a pass for little of the
     error, docs/vs_mitsuba.md); ``fast-single`` keeps them on every photon, and a point
     light beside the mesh keeps the sphere they share on every photon."""
-    from psurf_core.estimators import MESH_SINGLE_SHARE
+    from psurf_core.estimators import FULL_SINGLE_SHARES
 
     mesh = load_scene(SCENES / "mesh_light.toml")
-    s = f"@{MESH_SINGLE_SHARE:g}"
+    s, p = (f"@{FULL_SINGLE_SHARES[k]:g}" for k in ("mesh", "point"))
     full = parse_estimator("fast-full", mesh)
     assert [t.label for t in full.groups[0]] == [
         "ss-sphere" + s, "ss-cone" + s, "ss-disk-short" + s]
@@ -143,5 +143,5 @@ def test_fast_full_gives_a_mesh_lights_single_scattering_a_share():
     both = replace(mesh, lights=(*mesh.lights,
                                  *load_scene(SCENES / "point.toml").lights))
     labels = [t.label for t in parse_estimator("fast-full", both).groups[0]]
-    assert labels == ["ss-sphere", "ss-cone-short", "ss-cone" + s, "ss-disk",
+    assert labels == ["ss-sphere" + p, "ss-cone-short" + p, "ss-cone" + s, "ss-disk" + p,
                       "ss-disk-short" + s]
