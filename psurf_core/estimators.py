@@ -249,17 +249,17 @@ def _paper_multi():
 #: equal CPU time on four area-light scenes, with the Var within 0.94-1.26x.
 AREA_DISK_SHARE, AREA_SPHERE_SHARE = 0.45, 0.15
 
-#: ``fast-full``'s share of the photons for the single-scattering members of a point and of
-#: a mesh light (sphere, short cone and disk; sphere, cone and short disk), summed with the
-#: multiple-scattering set that sweeps every photon. Two summed sets of per-photon costs
-#: ``c1, c2`` and per-photon variances ``v1, v2`` are best served when the first sweeps
-#: ``sqrt((v1 / c1) / (v2 / c2))`` of the photons; measured 2026-12-06 (docs/vs_mitsuba.md,
-#: "A share for single scattering in fast-full"): ~0.23 on ``mesh_light`` and ~0.011 on
-#: ``dense_mesh_light``, where the mesh light's set took 6/7 of a pass for ~1 % of the error;
-#: ~0.27 on ``point``. The cost model is flat about its optimum, so one share per kind
-#: serves scenes whose optima differ by 20x. An area light's members keep their shares
-#: (its optimum, ~0.45 on ``area``, gained 0.87x in the model: not worth a fourth share).
-FULL_SINGLE_SHARES = {"mesh": 0.15, "point": 0.3}
+#: ``fast-full``'s share of the photons for each light kind's single-scattering members (a
+#: point light's sphere, short cone and disk; a mesh light's sphere, cone and short disk; an
+#: area light's whole set, its disk's and sphere's shares scaled alike), summed with the
+#: multiple-scattering set that sweeps every photon. Sets of per-photon costs ``c_g`` and
+#: relative variances ``v_g`` summed are best served by shares proportional to
+#: ``sqrt(v_g / c_g)``; ``benchmarks/set_shares.py`` measured (2026-12-06, docs/vs_mitsuba.md,
+#: "A share for single scattering in fast-full") 0.011 on ``dense_mesh_light`` and 0.15 on
+#: ``mesh_light``, 0.087 on ``point`` and 0.015 on ``hg``, 0.26 on ``area``. The model is flat
+#: about its optimum and a share above it risks less (a few split passes see a heavy tail's
+#: variance low more often than high), so one share per kind, at or above the optima.
+FULL_SINGLE_SHARES = {"mesh": 0.15, "point": 0.15, "area": 0.3}
 
 ALL_KINDS = ("point", "area", "mesh")
 
@@ -283,19 +283,20 @@ def _fast_single(kinds=ALL_KINDS, shares: dict | None = None):
     of them asks for.
     """
     point, area, mesh = ("point",), ("area",), ("mesh",)
-    own = {"point": 1.0, "mesh": 1.0, **(shares or {})}
+    own = {"point": 1.0, "mesh": 1.0, "area": 1.0, **(shares or {})}
 
     def share(name, **wants):  # (a member none of whose kinds is here is dropped later)
         most = max((wants[k] for k in kinds if k in wants), default=1.0)
         return _check_member(f"{name}@{most:g}")
 
-    return (*(_only(_check_member(n), area) for n in ("ss-plane-uv", "ss-plane-ut-short",
-                                                     "ss-plane-vt-short")),
+    return (*(_only(share(n, area=own["area"]), area) for n in (
+                "ss-plane-uv", "ss-plane-ut-short", "ss-plane-vt-short")),
             _only(share("ss-sphere", point=own["point"], mesh=own["mesh"],
-                        area=AREA_SPHERE_SHARE), point + mesh + area),
+                        area=AREA_SPHERE_SHARE * own["area"]), point + mesh + area),
             _only(_check_member(f"ss-cone-short@{own['point']:g}"), point),
             _only(_check_member(f"ss-cone@{own['mesh']:g}"), mesh),
-            _only(share("ss-disk", point=own["point"], area=AREA_DISK_SHARE), point + area),
+            _only(share("ss-disk", point=own["point"], area=AREA_DISK_SHARE * own["area"]),
+                  point + area),
             _only(_check_member(f"ss-disk-short@{own['mesh']:g}"), mesh))
 
 

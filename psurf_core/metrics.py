@@ -49,6 +49,13 @@ def var_relmse(var_of_mean: np.ndarray, ref: np.ndarray, eps: float = RELMSE_EPS
     return float(np.mean(_var_ratio(var_of_mean, ref, eps)))
 
 
+def relative_weight(ref: np.ndarray, eps: float = RELMSE_EPS) -> np.ndarray:
+    """(H, W, 3): the weight a relMSE gives each pixel's and channel's squared error,
+    ``1 / (R^2 + eps mean(R)^2)`` (0 where that is 0), for weighting variances alike
+    (``pass_size.split_variances``)."""
+    return _var_ratio(np.ones_like(np.asarray(ref, dtype=np.float64)), ref, eps)
+
+
 def var_relmse_map(var_of_mean: np.ndarray, ref: np.ndarray,
                    eps: float = RELMSE_EPS) -> np.ndarray:
     """(H, W): :func:`var_relmse` per pixel, averaged over channels (where in the image the

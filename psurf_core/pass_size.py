@@ -136,23 +136,29 @@ def split_photons(c0: float, c1: float) -> int:
     return int(min(max(n, PHOTON_RANGE[0]), PILOT_PHOTONS[1]))
 
 
-def split_variances(scene, estimator, settings: RenderSettings) -> tuple[float, float]:
-    """``(Vj, Vp)`` of :func:`split_terms` from :data:`SPLIT_PASSES` split passes of
+def split_variances(scene, estimator, settings: RenderSettings, weight=None,
+                    passes: int = SPLIT_PASSES,
+                    seed: int = PILOT_SEED + len(PILOT_PHOTONS)) -> tuple[float, float]:
+    """``(Vj, Vp)`` of :func:`split_terms` from ``passes`` split passes of
     ``settings.photons`` photons a half: each pass's camera rays (``pass_generators``'s ray
-    generator) shared by two photon sets spawned from its photon seed."""
+    generator) shared by two photon sets spawned from its photon seed.
+
+    ``weight`` (H, W, 3) or None: each pixel's weight in the pixel means (e.g. one over the
+    squared reference: relative variances, as a relMSE weighs them); None, all alike."""
     cam, n, blockers = scene.camera, settings.photons, blockers_of(scene)
+    w = 1.0 if weight is None else weight
     acc = Welford.empty((cam.height, cam.width, 3))
     half_difference = 0.0
-    for i in range(SPLIT_PASSES):
-        ray_rng, photon_ss = pass_generators(PILOT_SEED + len(PILOT_PHOTONS), i)
+    for i in range(passes):
+        ray_rng, photon_ss = pass_generators(seed, i)
         rays = camera_rays(scene, settings.spp, ray_rng, blockers=blockers)
         a, b = (np.nan_to_num(pass_image(cam, rays, photon_pass(
                     scene, estimator, rays, ss, settings, i, blockers) / n, settings.spp),
                     nan=0.0, posinf=0.0, neginf=0.0)
                 for ss in photon_ss.spawn(2))
         acc.add(0.5 * (a + b))
-        half_difference += float(np.mean(0.5 * (a - b) ** 2)) / SPLIT_PASSES
-    return split_terms(n, float(np.mean(acc.variance)), half_difference)
+        half_difference += float(np.mean(w * 0.5 * (a - b) ** 2)) / passes
+    return split_terms(n, float(np.mean(w * acc.variance)), half_difference)
 
 
 def auto_photons(scene, estimator, settings: RenderSettings, budget: float) -> int:

@@ -95,9 +95,13 @@ def test_allocated_set_with_a_numpy_member_is_unbiased():
     ("study_area", (1, 1), "fast-single", "paper-single"),
     ("point", (1, 1), "fast-single", "paper-single"),
     ("mesh_light", (1, 1), "fast-single", "paper-single"),
-    # fast-full's single-scattering set for a mesh light, every member on a share
+    # fast-full's single-scattering set for each light kind, every member on a share
     # (FULL_SINGLE_SHARES); its multiple-scattering set is left out (nothing at K = 1).
     ("mesh_light", (1, 1), "fast-full~plane-t1t2-short~plane-t2t3-short~cone-short",
+     "paper-single"),
+    ("point", (1, 1), "fast-full~plane-t1t2-short~plane-t2t3-short~cone-short",
+     "paper-single"),
+    ("study_area", (1, 1), "fast-full~plane-t1t2-short~plane-ut-short~cone-short",
      "paper-single"),
     # 2 s warm, but ~85 s of numba compiling on a fresh clone (walkers for a mesh and a
     # point light together): make test-slow.
@@ -124,24 +128,32 @@ def test_fast_presets_agree_with_the_papers(name, k, fast, paper):
     assert abs(_z(a, b)) < 4.0, (a.mean(), b.mean())
 
 
-def test_fast_full_gives_a_mesh_lights_single_scattering_a_share():
-    """``fast-full`` sums two sets; for a mesh light its single-scattering members sweep
-    ``FULL_SINGLE_SHARES['mesh']`` of the photons (they cost most of a pass for little of the
-    error, docs/vs_mitsuba.md); ``fast-single`` keeps them on every photon, and a point
-    light beside the mesh keeps the sphere they share on every photon."""
-    from psurf_core.estimators import FULL_SINGLE_SHARES
+def test_fast_full_gives_single_scattering_a_share_per_light_kind():
+    """``fast-full`` sums two sets; its single-scattering members sweep
+    :data:`FULL_SINGLE_SHARES` of the photons by light kind (they cost most of a pass for
+    little of the error, docs/vs_mitsuba.md), an area light's disk and sphere their
+    ``fast-single`` shares scaled alike; ``fast-single`` keeps its own. A member several
+    kinds share sweeps the largest share any of them asks for."""
+    from psurf_core.estimators import AREA_DISK_SHARE, AREA_SPHERE_SHARE, FULL_SINGLE_SHARES
 
+    def at(x):
+        return "" if x == 1.0 else f"@{x:g}"
+
+    m, p, a = (FULL_SINGLE_SHARES[k] for k in ("mesh", "point", "area"))
     mesh = load_scene(SCENES / "mesh_light.toml")
-    s, p = (f"@{FULL_SINGLE_SHARES[k]:g}" for k in ("mesh", "point"))
     full = parse_estimator("fast-full", mesh)
     assert [t.label for t in full.groups[0]] == [
-        "ss-sphere" + s, "ss-cone" + s, "ss-disk-short" + s]
+        "ss-sphere" + at(m), "ss-cone" + at(m), "ss-disk-short" + at(m)]
     assert [t.label for t in full.groups[1]] == [  # the multiple-scattering set as before
         "plane-t1t2-short", "plane-t2t3-short@0.3", "cone-short@0.2"]
     assert [t.label for t in parse_estimator("fast-single", mesh).techniques] == [
         "ss-sphere", "ss-cone", "ss-disk-short"]
+    area = load_scene(SCENES / "area.toml")
+    assert [t.label for t in parse_estimator("fast-full", area).groups[0]] == [
+        "ss-plane-uv" + at(a), "ss-plane-ut-short" + at(a), "ss-plane-vt-short" + at(a),
+        "ss-sphere" + at(AREA_SPHERE_SHARE * a), "ss-disk" + at(AREA_DISK_SHARE * a)]
     both = replace(mesh, lights=(*mesh.lights,
                                  *load_scene(SCENES / "point.toml").lights))
     labels = [t.label for t in parse_estimator("fast-full", both).groups[0]]
-    assert labels == ["ss-sphere" + p, "ss-cone-short" + p, "ss-cone" + s, "ss-disk" + p,
-                      "ss-disk-short" + s]
+    assert labels == ["ss-sphere" + at(max(m, p)), "ss-cone-short" + at(p), "ss-cone" + at(m),
+                      "ss-disk" + at(p), "ss-disk-short" + at(m)]
