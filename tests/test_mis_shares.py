@@ -103,6 +103,9 @@ def test_allocated_set_with_a_numpy_member_is_unbiased():
      "paper-single"),
     ("study_area", (1, 1), "fast-full~plane-t1t2-short~plane-ut-short~cone-short",
      "paper-single"),
+    # A point light with an HG phase and a box occluder (its walkers compile: make test-slow).
+    pytest.param("hg", (1, 1), "fast-full~plane-t1t2-short~plane-t2t3-short~cone-short",
+                 "paper-single", marks=pytest.mark.slow),
     # 2 s warm, but ~85 s of numba compiling on a fresh clone (walkers for a mesh and a
     # point light together): make test-slow.
     pytest.param("mesh_light+point", (1, 1), "fast-single", "paper-single",
