@@ -24,7 +24,7 @@ with its members' shares scaled so that the largest is 1 (the set's own allocati
 It prints both, the best shares (largest 1), and the model's variance at equal time of the
 estimator's present shares and of the best ones, relative to every set on every photon.
 The reference is ``--reference`` (an image ``.npz`` with ``mean``), else the sum of the
-sets' means over the split passes. One thread (``render_pass``), warm (a pass of each set
+sets' means over four passes. One thread (``render_pass``), warm (a pass of each set
 first compiles its walkers). Heavy tails make ``v_g`` of a few passes low more often than
 high: the shares are a guide for the presets' constants, not a per-render choice.
 """
