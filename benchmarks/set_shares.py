@@ -14,7 +14,7 @@ photon and has the per-photon variance ``v_g / s_g``; the sum's variance at equa
 with its members' shares scaled so that the largest is 1 (the set's own allocation kept):
 
 * ``c_g``, seconds a photon: the slope of the median wall time of ``--passes`` passes at
-  ``--photons`` and at a quarter of it (``pass_size.pass_cost``: the pass's fixed part, the
+  ``--photons`` and at a quarter of it (``pass_size.timed_cost``: the pass's fixed part, the
   camera rays, is left out; it is paid once for the sum);
 * ``v_g``, the per-photon relative variance: ``--split-passes`` split passes
   (``pass_size.split_variances``: two photon sets on one set of camera rays, so the
@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import statistics
 import sys
 import time
 from dataclasses import replace
@@ -46,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from psurf_core.estimators import Estimator, parse_estimator  # noqa: E402
 from psurf_core.metrics import relative_weight  # noqa: E402
-from psurf_core.pass_size import pass_cost, split_variances  # noqa: E402
+from psurf_core.pass_size import split_variances, timed_cost  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
 
@@ -97,13 +96,7 @@ def main(argv=None) -> int:
     costs = []
     for est, _ in sets:
         render_pass(scene, est, 0, 99, settings)  # warm: compile, allocate
-        times = [[], []]
-        for i in range(args.passes):  # sizes alternate: load reaches both alike
-            for k, n in enumerate(sizes):
-                t = time.perf_counter()
-                render_pass(scene, est, 1 + i, 99, replace(settings, photons=n))
-                times[k].append(time.perf_counter() - t)
-        costs.append(pass_cost(sizes, [statistics.median(t) for t in times]))
+        costs.append(timed_cost(scene, est, settings, sizes, args.passes, 100))
 
     if args.reference:
         ref = np.load(args.reference)["mean"]

@@ -293,11 +293,11 @@ def _fast_single(kinds=ALL_KINDS, shares: dict | None = None):
                 "ss-plane-uv", "ss-plane-ut-short", "ss-plane-vt-short")),
             _only(share("ss-sphere", point=own["point"], mesh=own["mesh"],
                         area=AREA_SPHERE_SHARE * own["area"]), point + mesh + area),
-            _only(_check_member(f"ss-cone-short@{own['point']:g}"), point),
-            _only(_check_member(f"ss-cone@{own['mesh']:g}"), mesh),
+            _only(share("ss-cone-short", point=own["point"]), point),
+            _only(share("ss-cone", mesh=own["mesh"]), mesh),
             _only(share("ss-disk", point=own["point"], area=AREA_DISK_SHARE * own["area"]),
                   point + area),
-            _only(_check_member(f"ss-disk-short@{own['mesh']:g}"), mesh))
+            _only(share("ss-disk-short", mesh=own["mesh"]), mesh))
 
 
 #: ``fast-multi``'s strips (``plane-ut-short``, ``plane-vt-short``) for area lights: a strip

@@ -117,16 +117,23 @@ def pilot(scene, estimator, settings: RenderSettings) -> tuple[float, float, flo
     :data:`PILOT_PHOTONS` (wall seconds, median; :func:`pass_cost`), then
     :data:`SPLIT_PASSES` split passes (:func:`split_variances`) with halves of
     ``PILOT_PHOTONS[1]`` photons or fewer (:data:`SPLIT_PASS_SECONDS`)."""
-    times = [[] for _ in PILOT_PHOTONS]
-    # The sizes alternate, so that a change in the machine's load reaches both alike.
-    for i in range(PILOT_PASSES):
-        for k, n in enumerate(PILOT_PHOTONS):
-            a = time.perf_counter()
-            render_pass(scene, estimator, i, PILOT_SEED + k, replace(settings, photons=n))
-            times[k].append(time.perf_counter() - a)
-    c0, c1 = pass_cost(PILOT_PHOTONS, [float(np.median(t)) for t in times])
+    c0, c1 = timed_cost(scene, estimator, settings, PILOT_PHOTONS, PILOT_PASSES, PILOT_SEED)
     half = replace(settings, photons=split_photons(c0, c1))
     return (c0, c1, *split_variances(scene, estimator, half))
+
+
+def timed_cost(scene, estimator, settings: RenderSettings, sizes, passes: int,
+               seed: int) -> tuple[float, float]:
+    """``(c0, c1)`` of :func:`pass_cost` from ``passes`` timed passes (wall seconds, median)
+    of each of the two photon counts ``sizes``, size ``k`` with seed ``seed + k``."""
+    times = [[] for _ in sizes]
+    # The sizes alternate, so that a change in the machine's load reaches both alike.
+    for i in range(passes):
+        for k, n in enumerate(sizes):
+            a = time.perf_counter()
+            render_pass(scene, estimator, i, seed + k, replace(settings, photons=n))
+            times[k].append(time.perf_counter() - a)
+    return pass_cost(sizes, [float(np.median(t)) for t in times])
 
 
 def split_photons(c0: float, c1: float) -> int:
