@@ -1,7 +1,7 @@
 """The renders ``benchmarks/vs_mitsuba.py`` makes: psurf's, Mitsuba's and the cached reference.
 
-* :func:`psurf_photons`: psurf's photons per pass for an equal-time render, measured as
-  ``app.py compare --photons auto`` does (``psurf_core.pass_size.auto_photons``);
+* :func:`psurf_plan`: psurf's estimator and photons per pass for an equal-time render,
+  measured as ``app.py compare --photons auto`` does (``psurf_core.share_pilot.piloted``);
 * :func:`psurf_render`: ``app.py render`` in a subprocess, loaded back from its .npz;
 * :func:`mitsuba_render`: Mitsuba's ``volpath`` for a wall time, in passes of a calibrated
   number of samples per pixel (:func:`calibrate_spp`);
@@ -37,6 +37,7 @@ import mitsuba_scene as ms  # noqa: E402
 from psurf_core import pass_size  # noqa: E402
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
+from psurf_core.share_pilot import piloted  # noqa: E402
 
 #: Seed of the reference renders (contestants use ``--seed``, default 0).
 REFERENCE_SEED = 1000
@@ -55,18 +56,23 @@ def _cpu_clock():
         pass_size.time = real
 
 
-def psurf_photons(scene, spec: str, seconds: float, clock: str = "wall") -> int | None:
-    """Photons per pass for ``seconds`` of ``spec`` on ``scene`` (its scatter window): the
-    pass model's ``N*`` from pilot passes in this process, as ``app.py compare`` chooses them
-    by default (``app.py render`` has a fixed default, 4000, far above ``N*`` for the photon
-    surfaces: docs/vs_mitsuba.md). ``None`` for the path tracer (no photons)."""
+def psurf_plan(scene, spec: str, seconds: float, clock: str = "wall") -> tuple[str,
+                                                                             int | None]:
+    """The estimator and the photons per pass for ``seconds`` of ``spec`` on ``scene`` (its
+    scatter window), chosen by pilot passes in this process as ``app.py compare`` chooses them
+    by default (``psurf_core.share_pilot.piloted``): ``fast-full``'s single-scattering share
+    first (the spec returned is then ``fast-full@S``), then the pass model's ``N*``
+    (``app.py render`` has a fixed default, 4000, far above ``N*`` for the photon surfaces:
+    docs/vs_mitsuba.md). Photons ``None`` for the path tracer (no photons)."""
     est = parse_estimator(spec, scene)
     if est.reference:
-        return None
+        return spec, None
     if clock == "cpu":
         with _cpu_clock():
-            return pass_size.auto_photons(scene, est, RenderSettings(), seconds)
-    return pass_size.auto_photons(scene, est, RenderSettings(), seconds)
+            est, m = piloted(scene, est, RenderSettings(), seconds)
+    else:
+        est, m = piloted(scene, est, RenderSettings(), seconds)
+    return est.spec, m["photons"]
 
 
 def _cpu_seconds(fn, repeats: int = 3) -> float:
@@ -228,7 +234,7 @@ def render_part(renderer, case, scene, scene_path, kmin, kmax, args) -> dict:
             ms.save_npz(path, r, sc, REFERENCE_SEED)
         else:
             estimator = "reference" if renderer == "psurf" else renderer
-            photons = psurf_photons(sc, estimator, args.ref_time, args.ref_clock)
+            estimator, photons = psurf_plan(sc, estimator, args.ref_time, args.ref_clock)
             n = None if cpu is None else psurf_cpu_passes(sc, estimator, photons, cpu)
             psurf_render(scene_path, kmin, kmax, estimator, args.ref_time, REFERENCE_SEED,
                          args.jobs, photons, path, passes=n)

@@ -43,21 +43,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from psurf_core.estimators import Estimator, parse_estimator  # noqa: E402
+from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.metrics import relative_weight  # noqa: E402
 from psurf_core.pass_size import split_variances, timed_cost  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
-
-
-def unshared(est: Estimator, g: int) -> tuple[Estimator, float]:
-    """Set ``g`` of ``est`` alone, its members' shares divided by the largest; and that
-    largest share (the set's present share of the photons)."""
-    group, full = est.sets[g]
-    top = max(t.share for t in group)
-    for t in group:
-        t.share = min(1.0, t.share / top)
-    return replace(est, groups=(group,), full_groups=(full,)), top
+from psurf_core.share_pilot import set_alone  # noqa: E402
 
 
 def model(v, c, s) -> float:
@@ -89,7 +80,7 @@ def main(argv=None) -> int:
         w, h = (int(x) for x in args.resolution.split(","))
         scene = replace(scene, camera=replace(scene.camera, width=w, height=h))
     n_sets = len(parse_estimator(args.estimator, scene).sets)
-    sets = [unshared(parse_estimator(args.estimator, scene), g) for g in range(n_sets)]
+    sets = [set_alone(args.estimator, scene, g) for g in range(n_sets)]
     settings = RenderSettings(photons=args.photons)
     sizes = (max(args.photons // 4, 1), args.photons)
 

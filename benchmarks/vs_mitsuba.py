@@ -29,7 +29,8 @@ Usage::
    window's ``--min-scatter/--max-scatter`` (``SPEC`` from :func:`recommended`, or
    ``--estimator``); kernels compile before its clock starts. ``N`` is ``--photons``, by
    default ``auto``: chosen by pilot passes outside the clock as ``app.py compare`` chooses
-   it (``mitsuba_renders.psurf_photons``).
+   it, with ``fast-full``'s single-scattering share before it (``fast-full@S``, the spec the
+   row records; ``mitsuba_renders.psurf_plan``).
 3. **Mitsuba**: :class:`mitsuba_scene.MitsubaRenderer` for the wall time psurf's run took
    (its ``seconds``: at least ``T``, since psurf finishes the pass in flight) on ``J`` Dr.Jit
    threads after a warm-up pass (which compiles the kernels outside the clock),
@@ -188,8 +189,10 @@ def run_case(case, scene_path, kmin, kmax, estimator, args) -> dict:
     scene = load_scene(ROOT / scene_path).with_scatter(kmin, kmax)
     ref = _reference(case, scene, scene_path, kmin, kmax, args)
     work = Path(args.work)
-    photons = (mr.psurf_photons(scene, estimator, args.time) if args.photons == "auto"
-               else int(args.photons))
+    # With --photons auto the pilot also chooses fast-full's share (fast-full@S): the row
+    # records the spec that ran.
+    estimator, photons = (mr.psurf_plan(scene, estimator, args.time) if args.photons == "auto"
+                          else (estimator, int(args.photons)))
     ps = mr.psurf_render(scene_path, kmin, kmax, estimator, args.time, args.seed, args.jobs,
                          photons, work / f"{case}_psurf.npz")
     # psurf finishes the pass in flight, so its run may exceed --time; Mitsuba gets the

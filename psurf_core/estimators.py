@@ -8,7 +8,8 @@ Grammar (the CLI contract):
   a member ``A@0.25`` sweeps only that share of each pass's photons, and the heuristics
   use sample counts (``n_i Q_i``), which keeps the set unbiased;
 * presets (``paper-single``, ``paper-multi``, ``paper-full``, ``fast-single``,
-  ``fast-multi``, ``fast-full``) where registered in :data:`PRESETS`;
+  ``fast-multi``, ``fast-full``) where registered in :data:`PRESETS`; ``fast-full@S`` puts
+  its single-scattering set on the share ``S`` of the photons (:data:`SHARED_PRESETS`);
 * ``SPEC~A~B``: ``SPEC`` (a preset or an MIS set) without its members ``A`` and ``B`` (what the
   window's member toggles give): every other member keeps what ``SPEC`` gave it (a preset's
   per-light choice, its MIS set), and a set left with one member is that technique alone.
@@ -68,6 +69,10 @@ class Estimator:
 #: Preset name -> callable(spec, scene) -> Estimator (:func:`register_presets`).
 PRESETS: dict = {}
 
+#: Presets that take a share, ``NAME@S``: name -> callable(S) -> the builder of
+#: :data:`PRESETS` with that share (``fast-full@S``: its single-scattering set on ``S``).
+SHARED_PRESETS: dict = {}
+
 
 def estimator_help() -> str:
     """One line per estimator name, for ``--help``."""
@@ -80,6 +85,8 @@ def estimator_help() -> str:
         lines.append(f"{name}: preset (see README)")
     lines.append("mis:A+B+... / mis-power:A+B+...: MIS of photon-surface techniques "
                  "(A@0.25: A sweeps a quarter of the photons)")
+    lines.append("fast-full@S: fast-full with its single-scattering set on a share S of "
+                 "the photons")
     lines.append("SPEC~A~B: SPEC (a preset or an MIS set) without its members A and B")
     return "\n".join(lines)
 
@@ -132,6 +139,12 @@ def _parse(spec: str, scene: Scene | None) -> Estimator:
         raise UnknownTechnique(f"preset '{spec[:-6]}' has no short variant")
     if spec.startswith(("mis:", "mis-power:")):
         return parse_mis(spec, scene)
+    head, at, _ = spec.partition("@")
+    if at and head.strip() in SHARED_PRESETS:
+        return SHARED_PRESETS[head.strip()](_split_share(spec)[1])(spec, scene)
+    if at and head.strip() in PRESETS:
+        raise UnknownTechnique(f"'{spec}': preset '{head.strip()}' takes no share (a share "
+                               f"follows an MIS member or {', '.join(SHARED_PRESETS)})")
     tech = get_technique(spec)
     if scene is not None and not any(tech.applies_to(lt) for lt in scene.lights):
         kinds = sorted({lt.kind for lt in scene.lights})
@@ -189,8 +202,8 @@ def _split_share(member: str) -> tuple[str, float]:
     except ValueError:
         share = float("nan")
     if not 0.0 < share <= 1.0:
-        raise UnknownTechnique(f"MIS member '{member}': the share after '@' must be a number "
-                               "in (0, 1], the fraction of the photons it sweeps")
+        raise UnknownTechnique(f"'{member}': the share after '@' must be a number in (0, 1], "
+                               "the fraction of the photons it sweeps")
     return name.strip(), share
 
 
@@ -364,8 +377,16 @@ def register_presets() -> None:
     PRESETS["paper-full"] = _preset(lambda kinds, scene: [_paper_single(), _paper_multi()])
     PRESETS["fast-single"] = _preset(lambda kinds, scene: [_fast_single(kinds)])
     PRESETS["fast-multi"] = _preset(lambda kinds, scene: [_fast_multi(kinds, scene)])
-    PRESETS["fast-full"] = _preset(lambda kinds, scene: [
-        _fast_single(kinds, FULL_SINGLE_SHARES), _fast_multi(kinds, scene)])
+    PRESETS["fast-full"] = _fast_full()
+    SHARED_PRESETS["fast-full"] = _fast_full
+
+
+def _fast_full(share: float | None = None):
+    """``fast-full``: :func:`_fast_single` on :data:`FULL_SINGLE_SHARES` (``share``: that
+    share for every light kind, an area light's disk and sphere scaled alike) summed with
+    :func:`_fast_multi` on every photon."""
+    shares = FULL_SINGLE_SHARES if share is None else dict.fromkeys(FULL_SINGLE_SHARES, share)
+    return _preset(lambda kinds, scene: [_fast_single(kinds, shares), _fast_multi(kinds, scene)])
 
 
 register_presets()

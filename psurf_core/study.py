@@ -89,9 +89,9 @@ import numpy as np
 from . import reliability as rl
 from .estimators import Estimator, parse_estimator
 from .metrics import RELMSE_EPS, relmse, relmse_map, var_relmse
-from .pass_size import auto_pass_model
 from .render import RenderSettings, render
 from .scene import Scene
+from .share_pilot import piloted, share_notes
 from .study_ratios import add_ratios
 from .study_reference import Reference, default_reference_seconds, load_reference
 from .study_report import (  # the writers; re-exported so ``study`` stays the one entry point
@@ -273,9 +273,9 @@ def compare(
             if p == "auto":
                 if on_pilot is not None and not e.reference:
                     on_pilot(e.spec, None)
-                pilots[k] = auto_pass_model(scene, e, settings, seconds)
+                ests[k], pilots[k] = piloted(scene, e, settings, seconds)
                 if on_pilot is not None and pilots[k] is not None:
-                    on_pilot(e.spec, pilots[k])
+                    on_pilot(ests[k].spec, pilots[k])
         photons = [(settings.photons if m is None else m["photons"]) if p == "auto"
                    else int(p) for m, p in zip(pilots, photons, strict=True)]
     if len(photons) != len(ests) or min(photons) < 1:
@@ -375,7 +375,7 @@ def compare(
         run_relvar = None if run_var_map is None else var_relmse(run_var_map, ref)
         correlated = not settings.independent_passes and run_var is not None
         mean_var = _mean_or_none([x["mean_variance"] for x in per_run])
-        notes = list(est.notes)
+        notes = list(est.notes) + share_notes(pilots[k], est)
         if not est.reference and _min_k(est) > scene.min_scatter:
             notes.append(f"covers K >= {_min_k(est)} only; the image has K >= "
                          f"{scene.min_scatter} (the missing part counts as error)")

@@ -146,6 +146,8 @@ BAD = {
                       "medium.sigma_s"),
     "unknown estimator": (lambda t: ["render", SCENE, "--estimator", "nosuch"], "nosuch"),
     "bad -short": (lambda t: ["render", SCENE, "--estimator", "planes-short"], "planes"),
+    "bad preset share": (lambda t: ["render", SCENE, "--estimator", "fast-full@2"],
+                         "fast-full@2"),
     "passes and time": (lambda t: ["render", SCENE, "--estimator", "planes", "--passes", "2",
                                    "--time", "1"], "--time"),
     "negative photons": (lambda t: ["render", SCENE, "--estimator", "planes", "--photons", "-5"],

@@ -103,6 +103,9 @@ def test_allocated_set_with_a_numpy_member_is_unbiased():
      "paper-single"),
     ("study_area", (1, 1), "fast-full~plane-t1t2-short~plane-ut-short~cone-short",
      "paper-single"),
+    # A share the pilot may choose (share_pilot.SHARE_RANGE's floor is 0.03).
+    ("point", (1, 1), "fast-full@0.05~plane-t1t2-short~plane-t2t3-short~cone-short",
+     "paper-single"),
     # A point light with an HG phase and a box occluder (its walkers compile: make test-slow).
     pytest.param("hg", (1, 1), "fast-full~plane-t1t2-short~plane-t2t3-short~cone-short",
                  "paper-single", marks=pytest.mark.slow),

@@ -14,6 +14,7 @@ from psurf_core.estimators import FULL_SINGLE_SHARES, parse_estimator
 from psurf_core.pass_size import split_variances
 from psurf_core.render import RenderSettings
 from psurf_core.scene_io import load_scene
+from psurf_core.share_pilot import set_alone
 
 set_shares = load_benchmark("set_shares")
 
@@ -21,11 +22,14 @@ set_shares = load_benchmark("set_shares")
 def test_a_set_is_measured_on_its_own_allocation():
     """The single-scattering set of ``fast-full`` for a point light, alone, its members back
     on every photon; the preset's share is reported as the set's present share."""
-    est = parse_estimator("fast-full", load_scene(ROOT / "scenes" / "point.toml"))
-    alone, top = set_shares.unshared(est, 0)
+    scene = load_scene(ROOT / "scenes" / "point.toml")
+    alone, top = set_alone("fast-full", scene, 0)
     assert top == FULL_SINGLE_SHARES["point"]
     assert [t.label for t in alone.techniques] == ["ss-sphere", "ss-cone-short", "ss-disk"]
     assert len(alone.sets) == 1
+    # The estimator parsed by anyone else keeps its shares.
+    assert [t.label for t in parse_estimator("fast-full", scene).sets[0][0]] == [
+        "ss-sphere@0.15", "ss-cone-short@0.15", "ss-disk@0.15"]
 
 
 def test_the_best_shares_beat_the_present_ones_in_the_model(tmp_path):

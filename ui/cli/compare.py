@@ -129,7 +129,9 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                         "each estimator on pilot passes (its fixed and per-photon cost, its "
                         "photon and pixel variance; not counted in the budget) and picks "
                         "the pass size that minimises the final image's variance, keeping "
-                        "at least 48 passes (psurf_core/pass_size.py)")
+                        "at least 48 passes (psurf_core/pass_size.py); 'fast-full' also "
+                        "gets its single-scattering share so (psurf_core/share_pilot.py; "
+                        "fast-full@S fixes it)")
     p.add_argument("--resolution", type=resolution, default=None, metavar="W,H",
                    help="render at W x H pixels instead of the scene's resolution")
     p.add_argument("--spp", type=positive_int, default=DEFAULT_SPP, metavar="K",
@@ -275,6 +277,11 @@ def _on_pilot(spec: str, m: dict | None) -> None:
     if m is None:
         print(f"{spec}: sizing its passes (a pilot, not timed) ... ", end="", flush=True)
         return
+    share = m.get("share_model")
+    if share is not None:  # a shared preset: its single-scattering share came first
+        print(f"single scattering on {share['share']:g} of the photons (the preset's "
+              f"{share['preset_share']:g}; pilot {share['pilot_seconds']:.1f} s; "
+              f"--estimators {share['spec']} repeats it), ", end="")
     print(f"{m['photons']} photons a pass (pilot {m['pilot_seconds']:.1f} s, not "
           f"timed; c0 {m['c0'] * 1e3:.3g} ms, c1 {m['c1'] * 1e6:.3g} us a photon, "
           f"Vj {m['vj']:.2g}, Vp {m['vp']:.2g})", flush=True)
