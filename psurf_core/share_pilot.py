@@ -168,7 +168,8 @@ def share_notes(model: dict | None, est: Estimator) -> list[str]:
     if share is None:
         return []
     return [f"its single-scattering set on {share['share']:g} of the photons, chosen by the "
-            f"pilot (the preset's {share['preset_share']:g}): '{est.spec}' repeats it"]
+            f"pilot (the preset's {share['preset_share']:g}): --estimators {est.spec} "
+            f"--photons {model['photons']} repeats the pilot's choices"]
 
 
 __all__ = ["SHARE_RANGE", "best_share", "choose_share", "model", "piloted", "set_alone",

@@ -165,6 +165,28 @@ def _clear_rays(scene, pts, bl, count=5):
     return one, pick
 
 
+def test_pixel_quadrature_of_some_pixels_and_jittered():
+    """``pixel_quadrature``: the pixels asked for are those of the whole image (the others
+    0); jittered sub-pixel points agree with the product rule on smooth pixels."""
+    from psurf_core.reference_quadrature import pixel_quadrature
+
+    scene = make_scene([POINT], g=0.4)
+    full = pixel_quadrature(scene, 4, 256)
+    pick = np.array([0, 5, W + 3, H * W - 1])
+    part = pixel_quadrature(scene, 4, 256, pixels=pick)
+    np.testing.assert_array_equal(part.reshape(-1, 3)[pick], full.reshape(-1, 3)[pick])
+    rest = np.ones(H * W, bool)
+    rest[pick] = False
+    assert not part.reshape(-1, 3)[rest].any()
+    jit = pixel_quadrature(scene, 16, 256, rng=np.random.default_rng(3))
+    # Away from the light's 3x3 pixels (its 1/r^2 peak, where rules converge slowly).
+    px, py, _ = project(scene.camera, POINT.position[None])
+    lit = full[..., 0] > 1e-3 * full.max()
+    lit[max(int(py[0]) - 1, 0):int(py[0]) + 2, max(int(px[0]) - 1, 0):int(px[0]) + 2] = False
+    np.testing.assert_allclose(jit[lit], full[lit], rtol=0.05)
+    assert lit.sum() > 20
+
+
 @pytest.mark.parametrize("light", [TILTED_AREA, TETRA], ids=["parallelogram", "tetra-mesh"])
 @pytest.mark.parametrize("g", [0.0, 0.5], ids=["iso", "hg"])
 def test_emitter_single_scatter_matches_brute_force(light, g, seed=5):

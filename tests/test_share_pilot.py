@@ -116,7 +116,8 @@ def test_compare_runs_the_chosen_share_and_says_so(monkeypatch):
     assert auto["estimator"] == "fast-full@0.05" and given["estimator"] == "fast-full"
     assert auto["pass_model"]["share_model"] == chosen
     assert seen == [("fast-full", None), ("fast-full@0.05", auto["pass_model"])]
-    assert any("chosen by the pilot" in n and "'fast-full@0.05'" in n for n in auto["notes"])
+    assert any("chosen by the pilot" in n and "--estimators fast-full@0.05 --photons "
+               f"{auto['photons_per_pass']} " in n for n in auto["notes"])
     assert not any("chosen by the pilot" in n for n in given["notes"])
     assert json.loads(json.dumps(to_json(s), allow_nan=False))["results"][0][
         "pass_model"]["share_model"]["spec"] == "fast-full@0.05"

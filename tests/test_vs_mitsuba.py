@@ -31,10 +31,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from psurf_core.camera import camera_rays, clip_rays, pixel_directions, project
+from psurf_core.camera import camera_rays, pixel_directions, project
 from psurf_core.constants import MAX_TRACE_DEPTH
 from psurf_core.geometry import blockers_of, ray_box
-from psurf_core.reference import reference_image, single_scatter_quadrature
+from psurf_core.reference import reference_image
+from psurf_core.reference_quadrature import pixel_quadrature
 from psurf_core.scene import BoxOccluder, Scene, SphereOccluder
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -133,25 +134,6 @@ def _psurf_reference(scene, passes, spp, seed):
     return imgs.mean(axis=0), imgs.std(axis=0, ddof=1) / np.sqrt(passes)
 
 
-def _pixel_quadrature(scene, n_sub, n_nodes=512):
-    """(H, W, 3) point-light single scattering averaged over each pixel's area:
-    ``n_sub x n_sub`` Gauss-Legendre points per pixel, each a 1D quadrature along its ray."""
-    cam = scene.camera
-    xg, wg = np.polynomial.legendre.leggauss(n_sub)
-    xg, wg = (xg + 1.0) / 2.0, wg / 2.0
-    row, col = np.divmod(np.arange(cam.n_pixels), cam.width)
-    px = (col[:, None, None] + xg[None, :, None] + 0.0 * xg[None, None, :]).ravel()
-    py = (row[:, None, None] + 0.0 * xg[None, :, None] + xg[None, None, :]).ravel()
-    w = np.outer(wg, wg).ravel()
-    d = pixel_directions(cam, px, py)
-    o = np.broadcast_to(cam.position, d.shape).copy()
-    bl = blockers_of(scene)
-    s0, s1 = clip_rays(scene, o, d, bl)
-    q = single_scatter_quadrature(scene, o, d, s0, s1, n=n_nodes, blockers=bl)
-    q = (q.reshape(cam.n_pixels, n_sub * n_sub, 3) * w[None, :, None]).sum(axis=1)
-    return q.reshape(cam.height, cam.width, 3)
-
-
 def _z(a, se_a, b, se_b=0.0, mask=None):
     """Per-pixel |z| (masked) and the aggregate z per channel of ``a`` against ``b``."""
     mask = np.ones(a.shape[:2], bool) if mask is None else mask
@@ -224,7 +206,7 @@ def point_scene(case: str) -> Scene:
 def test_point_single_scatter_matches_pixel_quadrature(variant, case):
     scene = point_scene(case)
     g = scene.medium.phase.g
-    fine, coarse = _pixel_quadrature(scene, 8), _pixel_quadrature(scene, 4)
+    fine, coarse = pixel_quadrature(scene, 8), pixel_quadrature(scene, 4)
     # The light's pixel holds the 1/r singularity (NEE to a point: infinite variance there,
     # and the pixel quadrature converges slowly); its neighbours are left out too.
     px, py, _ = project(scene.camera, POINT.position[None])
