@@ -26,7 +26,8 @@ A short pilot sees a heavy tail's rare large contributions less often than their
 the variance: it reads ``v`` low. Low ``v_2`` raises ``s`` (safe: the single set costs a little
 more); low ``v_1`` lowers it, so :data:`SHARE_RANGE` keeps ``s`` from going near 0 on a
 misread (the model is flat about its optimum: on ``dense_mesh_light`` the floor 0.03 keeps
-~90 % of what the optimum gains over 0.15).
+~90 % of what the optimum gains over 0.15). With an area light in the scene the floor is the
+preset's share (:func:`share_floor`): the pilot may raise it, not lower it.
 """
 
 from __future__ import annotations
@@ -82,15 +83,27 @@ def set_alone(spec: str, scene, g: int) -> tuple[Estimator, float]:
     return replace(est, groups=(group,), full_groups=(full,)), top
 
 
-def best_share(v: tuple[float, float], c: tuple[float, float]) -> float:
+def best_share(v: tuple[float, float], c: tuple[float, float],
+               lo: float = SHARE_RANGE[0]) -> float:
     """``s* = sqrt(v_1 c_2 / (v_2 c_1))`` for the first of two summed sets (the second on
-    every photon), within :data:`SHARE_RANGE`; the top of the range where the second set has
-    no measured variance."""
+    every photon), within ``[lo, SHARE_RANGE[1]]``; the top of the range where the second set
+    has no measured variance."""
     (v1, v2), (c1, c2) = v, c
     if not v2 > 0.0:
         return SHARE_RANGE[1]
     s = math.sqrt(max(v1, 0.0) * c2 / (v2 * max(c1, 1e-12)))
-    return float(min(max(s, SHARE_RANGE[0]), SHARE_RANGE[1]))
+    return float(min(max(s, lo), SHARE_RANGE[1]))
+
+
+def share_floor(scene, preset_share: float) -> float:
+    """The least share the pilot may choose on ``scene``: the preset's own where the scene has
+    an area light (its single-scattering planes are heavy-tailed in the dim pixels a relMSE
+    weighs: a pilot reads their variance low, and on ``area_occluder`` the share it chose,
+    0.14 against the preset's 0.3, left 11x the relVar in one run, docs/vs_mitsuba.md), else
+    :data:`SHARE_RANGE`'s floor."""
+    if any(lt.kind == "area" for lt in scene.lights):
+        return max(preset_share, SHARE_RANGE[0])
+    return SHARE_RANGE[0]
 
 
 def model(v, c, s: float) -> float:
@@ -133,7 +146,9 @@ def choose_share(scene, spec: str, settings: RenderSettings) -> dict:
                      "v": vp})
     v = (rows[0]["v"], rows[1]["v"])
     c = (rows[0]["c1"], rows[1]["c1"])
-    share = float(f"{best_share(v, c):.2g}")  # the spec's text is the record: round first
+    lo = share_floor(scene, preset_share)
+    # The spec's text is the record: round first (up, so that the floor holds).
+    share = max(float(f"{best_share(v, c, lo):.2g}"), lo)
     return {"spec": f"{spec}@{share:g}", "share": share, "preset_share": preset_share,
             "sets": rows, "model_vs_preset": (model(v, c, share) / model(v, c, preset_share)
                                               if v[1] > 0.0 else 1.0),
@@ -173,4 +188,4 @@ def share_notes(model: dict | None, est: Estimator) -> list[str]:
 
 
 __all__ = ["SHARE_RANGE", "best_share", "choose_share", "model", "piloted", "set_alone",
-           "share_notes", "shared_preset"]
+           "share_floor", "share_notes", "shared_preset"]

@@ -64,6 +64,17 @@ def test_best_share_minimises_the_model():
     assert sp.best_share((0.5, 0.0), c) == sp.SHARE_RANGE[1]
 
 
+def test_an_area_light_keeps_at_least_the_presets_share():
+    """With an area light the pilot may raise the share, not lower it (its planes' heavy
+    tails are read low by a short pilot); without one, SHARE_RANGE's floor holds."""
+    area, point = load_scene(SCENES / "area.toml"), load_scene(SCENES / "point.toml")
+    assert sp.share_floor(area, 0.3) == 0.3
+    assert sp.share_floor(point, 0.15) == sp.SHARE_RANGE[0]
+    v, c = (1e-6, 600.0), (1.4e-4, 2.1e-5)  # a misread: the single set all but noiseless
+    assert sp.best_share(v, c, sp.share_floor(area, 0.3)) == 0.3
+    assert sp.best_share(v, c, sp.share_floor(point, 0.15)) == sp.SHARE_RANGE[0]
+
+
 def test_the_pilot_measures_both_sets_and_chooses_a_share():
     """A real pilot on a small point-light scene: both sets measured alone (their own
     members, positive costs and variances), a share within range that the spec replays,
