@@ -132,3 +132,20 @@ def test_compare_runs_the_chosen_share_and_says_so(monkeypatch):
     assert not any("chosen by the pilot" in n for n in given["notes"])
     assert json.loads(json.dumps(to_json(s), allow_nan=False))["results"][0][
         "pass_model"]["share_model"]["spec"] == "fast-full@0.05"
+
+
+def test_the_cli_pilot_line_names_the_share_and_how_to_repeat_it(capsys):
+    """``app.py compare``'s pilot line: the share chosen, the preset's, and the flags that
+    repeat both choices."""
+    from ui.cli.compare import _on_pilot
+
+    share = {"spec": "fast-full@0.05", "share": 0.05, "preset_share": 0.15,
+             "pilot_seconds": 6.7}
+    _on_pilot("fast-full", None)
+    _on_pilot("fast-full@0.05", {"photons": 122, "pilot_seconds": 1.0, "c0": 0.01,
+                                 "c1": 5e-5, "vj": 4e-6, "vp": 3e-4, "share_model": share})
+    out = capsys.readouterr().out
+    assert out.startswith("fast-full: sizing its passes")
+    assert "single scattering on 0.05 of the photons (the preset's 0.15" in out
+    assert "--estimators fast-full@0.05 --photons 122 repeat both" in out
+    assert out.count("\n") == 1  # one line

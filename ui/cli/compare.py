@@ -281,7 +281,7 @@ def _on_pilot(spec: str, m: dict | None) -> None:
     if share is not None:  # a shared preset: its single-scattering share came first
         print(f"single scattering on {share['share']:g} of the photons (the preset's "
               f"{share['preset_share']:g}; pilot {share['pilot_seconds']:.1f} s; "
-              f"--estimators {share['spec']} repeats it), ", end="")
+              f"--estimators {share['spec']} --photons {m['photons']} repeat both), ", end="")
     print(f"{m['photons']} photons a pass (pilot {m['pilot_seconds']:.1f} s, not "
           f"timed; c0 {m['c0'] * 1e3:.3g} ms, c1 {m['c1'] * 1e6:.3g} us a photon, "
           f"Vj {m['vj']:.2g}, Vp {m['vp']:.2g})", flush=True)
