@@ -45,10 +45,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.metrics import relative_weight  # noqa: E402
-from psurf_core.pass_size import split_variances, timed_cost  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
-from psurf_core.share_pilot import set_alone  # noqa: E402
+from psurf_core.share_pilot import measure_set, set_alone  # noqa: E402
 
 
 def model(v, c, s) -> float:
@@ -84,22 +83,17 @@ def main(argv=None) -> int:
     settings = RenderSettings(photons=args.photons)
     sizes = (max(args.photons // 4, 1), args.photons)
 
-    costs = []
-    for est, _ in sets:
-        render_pass(scene, est, 0, 99, settings)  # warm: compile, allocate
-        costs.append(timed_cost(scene, est, settings, sizes, args.passes, 100))
-
     if args.reference:
         ref = np.load(args.reference)["mean"]
     else:  # the sets' sum over a few passes (their means are what the weights need)
         ref = sum(sum(render_pass(scene, est, 500 + i, 98, settings) for i in range(4)) / 4
                   for est, _ in sets)
     weight = relative_weight(ref)
-    half = replace(settings, photons=max(args.photons // 2, 1))
     rows = []
-    for (est, share), (c0, c1) in zip(sets, costs, strict=True):
-        _, vp = split_variances(scene, est, half, weight=weight, passes=args.split_passes,
-                                seed=7)
+    for est, share in sets:
+        render_pass(scene, est, 0, 99, settings)  # warm: compile, allocate
+        c0, c1, vp = measure_set(scene, est, settings, weight, sizes, args.passes, 100,
+                                 args.split_passes, 7, max(args.photons // 2, 1))
         rows.append({"members": [t.label for t in est.techniques], "present_share": share,
                      "c0_s": c0, "c1_s_per_photon": c1, "v_rel_per_photon": vp})
     v = [r["v_rel_per_photon"] for r in rows]

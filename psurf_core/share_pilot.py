@@ -106,6 +106,23 @@ def share_floor(scene, preset_share: float) -> float:
     return SHARE_RANGE[0]
 
 
+def measure_set(scene, alone: Estimator, settings: RenderSettings, weight, sizes,
+                passes: int, time_seed: int, split_passes: int, split_seed: int,
+                half_photons: int | None = None) -> tuple[float, float, float]:
+    """``(c0, c1, v)`` of one set on its own (:func:`set_alone`): the fixed and per-photon
+    seconds of a pass (:func:`pass_size.timed_cost`, ``passes`` of each of ``sizes`` from
+    ``time_seed``) and its relative variance a photon (:func:`pass_size.split_variances`,
+    pixels weighted by ``weight``, ``split_passes`` from ``split_seed``, halves of
+    ``half_photons`` photons, by default as many as :func:`pass_size.split_photons` allows).
+    Shared by :func:`choose_share` and ``benchmarks/set_shares.py``."""
+    c0, c1 = timed_cost(scene, alone, settings, sizes, passes, time_seed)
+    half = replace(settings, photons=split_photons(c0, c1) if half_photons is None
+                   else half_photons)
+    _, vp = split_variances(scene, alone, half, weight=weight, passes=split_passes,
+                            seed=split_seed)
+    return c0, c1, vp
+
+
 def model(v, c, s: float) -> float:
     """Variance at equal time (up to a constant) of the two sets with the first on share
     ``s``: ``(v_1 / s + v_2) (s c_1 + c_2)``."""
@@ -137,11 +154,9 @@ def choose_share(scene, spec: str, settings: RenderSettings) -> dict:
         alone, top = set_alone(spec, scene, g)
         preset_share = top if g == 0 else preset_share
         warm_up(scene, alone, settings)
-        c0, c1 = timed_cost(scene, alone, settings, PILOT_PHOTONS, PILOT_PASSES,
-                            SHARE_SEED + 1 + 2 * g)
-        half = replace(settings, photons=split_photons(c0, c1))
-        _, vp = split_variances(scene, alone, half, weight=weight, passes=SHARE_SPLIT_PASSES,
-                                seed=SHARE_SEED + 8 + g)
+        c0, c1, vp = measure_set(scene, alone, settings, weight, PILOT_PHOTONS, PILOT_PASSES,
+                                 SHARE_SEED + 1 + 2 * g, SHARE_SPLIT_PASSES,
+                                 SHARE_SEED + 8 + g)
         rows.append({"members": [t.label for t in alone.techniques], "c0": c0, "c1": c1,
                      "v": vp})
     v = (rows[0]["v"], rows[1]["v"])
@@ -188,4 +203,4 @@ def share_notes(model: dict | None, est: Estimator) -> list[str]:
 
 
 __all__ = ["SHARE_RANGE", "best_share", "choose_share", "model", "piloted", "set_alone",
-           "share_floor", "share_notes", "shared_preset"]
+           "measure_set", "share_floor", "share_notes", "shared_preset"]
