@@ -47,13 +47,7 @@ from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.metrics import relative_weight  # noqa: E402
 from psurf_core.render import RenderSettings, render_pass  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
-from psurf_core.share_pilot import measure_set, set_alone  # noqa: E402
-
-
-def model(v, c, s) -> float:
-    """Variance at equal time of summed sets on shares ``s``: ``(sum v/s) (sum s c)``."""
-    return sum(vi / si for vi, si in zip(v, s, strict=True)) * sum(
-        si * ci for si, ci in zip(s, c, strict=True))
+from psurf_core.share_pilot import measure_set, model, set_alone  # noqa: E402
 
 
 def main(argv=None) -> int:

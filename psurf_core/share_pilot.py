@@ -123,10 +123,12 @@ def measure_set(scene, alone: Estimator, settings: RenderSettings, weight, sizes
     return c0, c1, vp
 
 
-def model(v, c, s: float) -> float:
-    """Variance at equal time (up to a constant) of the two sets with the first on share
-    ``s``: ``(v_1 / s + v_2) (s c_1 + c_2)``."""
-    return (v[0] / s + v[1]) * (s * c[0] + c[1])
+def model(v, c, s) -> float:
+    """Variance at equal time (up to a constant) of summed sets on shares ``s`` (a sequence,
+    one a set): ``(sum v_i / s_i) (sum s_i c_i)``; for :func:`choose_share`'s two sets,
+    ``s = (S, 1)``. ``v``: relative variance a photon; ``c``: seconds a photon."""
+    return sum(vi / si for vi, si in zip(v, s, strict=True)) * sum(
+        si * ci for si, ci in zip(s, c, strict=True))
 
 
 def choose_share(scene, spec: str, settings: RenderSettings) -> dict:
@@ -164,9 +166,10 @@ def choose_share(scene, spec: str, settings: RenderSettings) -> dict:
     lo = share_floor(scene, preset_share)
     # The spec's text is the record: round first (up, so that the floor holds).
     share = max(float(f"{best_share(v, c, lo):.2g}"), lo)
+    gain = (model(v, c, (share, 1.0)) / model(v, c, (preset_share, 1.0)) if v[1] > 0.0
+            else 1.0)
     return {"spec": f"{spec}@{share:g}", "share": share, "preset_share": preset_share,
-            "sets": rows, "model_vs_preset": (model(v, c, share) / model(v, c, preset_share)
-                                              if v[1] > 0.0 else 1.0),
+            "sets": rows, "model_vs_preset": gain,
             "pilot_seconds": time.perf_counter() - t0}
 
 

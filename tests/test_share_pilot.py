@@ -58,7 +58,8 @@ def test_best_share_minimises_the_model():
     s = sp.best_share(v, c)
     assert sp.SHARE_RANGE[0] < s < sp.SHARE_RANGE[1]
     assert s == pytest.approx(math.sqrt(v[0] * c[1] / (v[1] * c[0])))
-    assert sp.model(v, c, s) < min(sp.model(v, c, s / 1.5), sp.model(v, c, s * 1.5))
+    assert sp.model(v, c, (s, 1.0)) < min(sp.model(v, c, (s / 1.5, 1.0)),
+                                       sp.model(v, c, (s * 1.5, 1.0)))
     assert sp.best_share((1e-9, 600.0), c) == sp.SHARE_RANGE[0]
     assert sp.best_share((5e4, 1.0), c) == sp.SHARE_RANGE[1]
     assert sp.best_share((0.5, 0.0), c) == sp.SHARE_RANGE[1]
@@ -91,7 +92,7 @@ def test_the_pilot_measures_both_sets_and_chooses_a_share():
         assert row["c1"] > 0.0 and row["v"] > 0.0
     v, c = (single["v"], multi["v"]), (single["c1"], multi["c1"])
     assert choice["model_vs_preset"] == pytest.approx(
-        sp.model(v, c, choice["share"]) / sp.model(v, c, 0.15))
+        sp.model(v, c, (choice["share"], 1.0)) / sp.model(v, c, (0.15, 1.0)))
     est = parse_estimator(choice["spec"], scene)
     assert {t.share for t in est.groups[0]} == {min(choice["share"], 1.0)} or \
         choice["share"] == 1.0
