@@ -13,11 +13,9 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import os
-import subprocess
-import sys
 from pathlib import Path
 
+from app_support import run_app
 from toml_writer import dumps
 
 import app
@@ -146,9 +144,7 @@ def assert_rejected(argv: list[str], needles, work: Path, capsys) -> None:
 def assert_rejected_by_subprocess(argv: list[str], needles, tmp: Path) -> None:
     """As :func:`assert_rejected`, but ``python app.py`` in a subprocess (no display)."""
     before = tree(tmp)
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    r = subprocess.run([sys.executable, str(ROOT / "app.py"), *argv], cwd=tmp, env=env,
-                       capture_output=True, text=True, timeout=120)
+    r = run_app(*argv, cwd=tmp)
     assert r.returncode == 2, (r.stdout, r.stderr)
     assert r.stdout == ""
     line = one_error_line(r.stderr)

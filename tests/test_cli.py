@@ -6,13 +6,11 @@ Each test runs the CLI in a subprocess (``sys.executable app.py ...``) on the bu
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from app_support import run_app
 
 import psurf_core
 from psurf_core import images
@@ -25,16 +23,9 @@ KEYS = {"mean", "var", "passes", "photons_per_pass", "spp", "seconds", "estimato
         "radius", "version", "argv"}
 
 
-def run_cli(*args, cwd: Path, timeout: float = 120.0) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    env["MPLBACKEND"] = "Agg"
-    return subprocess.run([sys.executable, str(APP), *map(str, args)], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=timeout)
-
-
 def render(tmp: Path, name: str, *extra, estimator: str = "planes") -> dict:
     out = tmp / name
-    r = run_cli("render", SCENE, "--estimator", estimator, *extra, "--out", out, cwd=tmp)
+    r = run_app("render", SCENE, "--estimator", estimator, *extra, "--out", out, cwd=tmp)
     assert r.returncode == 0, r.stderr
     with np.load(out) as d:
         return {k: d[k] for k in d.files}
@@ -119,7 +110,7 @@ def test_scatter_override_is_recorded(tmp_path):
 @pytest.mark.parametrize("estimator", ["reference", "points", "bre", "beams", "beams-long"])
 def test_other_estimators_render(tmp_path, estimator):
     out = tmp_path / "e.npz"
-    r = run_cli("render", SCENE, "--estimator", estimator, *TINY, "--out", out, cwd=tmp_path)
+    r = run_app("render", SCENE, "--estimator", estimator, *TINY, "--out", out, cwd=tmp_path)
     if r.returncode == 2 and ("not available" in r.stderr or "unknown estimator" in r.stderr):
         pytest.skip(f"estimator '{estimator}' not available yet: {r.stderr.strip()}")
     assert r.returncode == 0, r.stderr
@@ -173,7 +164,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path, case):
     work.mkdir()
     args = make_args(work)
     before = set(work.iterdir())
-    r = run_cli(*args, "--out", work / "out.npz", cwd=work)
+    r = run_app(*args, "--out", work / "out.npz", cwd=work)
     assert r.returncode == 2, (r.stdout, r.stderr)
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("psurf: error: "), r.stderr
@@ -196,7 +187,7 @@ def test_estimator_for_no_light_of_the_scene_exits_2(tmp_path):
     if name is None:
         pytest.skip("no registered technique excludes point lights yet")
     point = ROOT / "scenes" / "point.toml"
-    r = run_cli("render", point, "--estimator", name, "--out", tmp_path / "x.npz", cwd=tmp_path)
+    r = run_app("render", point, "--estimator", name, "--out", tmp_path / "x.npz", cwd=tmp_path)
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("psurf: error: ") and "point.toml" in lines[0]
@@ -204,7 +195,7 @@ def test_estimator_for_no_light_of_the_scene_exits_2(tmp_path):
 
 
 def test_out_directory_must_exist(tmp_path):
-    r = run_cli("render", SCENE, "--estimator", "planes", "--out", tmp_path / "no" / "x.npz",
+    r = run_app("render", SCENE, "--estimator", "planes", "--out", tmp_path / "no" / "x.npz",
                 cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.startswith("psurf: error: --out")
     assert not (tmp_path / "no").exists()
@@ -212,7 +203,7 @@ def test_out_directory_must_exist(tmp_path):
 
 def test_unknown_subcommand_exits_2(tmp_path):
     # (no arguments at all runs the demo: `python app.py [SCENE.toml]` opens the app)
-    r = run_cli("bogus", cwd=tmp_path)
+    r = run_app("bogus", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.startswith("psurf: error: ")
     assert list(tmp_path.iterdir()) == []
 
@@ -221,7 +212,7 @@ def test_exr_checked_before_rendering(tmp_path):
     ok, _ = images.can_write_exr()
     args = ["render", SCENE, "--estimator", "planes", *TINY, "--out", tmp_path / "x.npz",
             "--exr", tmp_path / "x.exr"]
-    r = run_cli(*args, cwd=tmp_path)
+    r = run_app(*args, cwd=tmp_path)
     if ok:
         assert r.returncode == 0, r.stderr
         assert (tmp_path / "x.exr").read_bytes()[:4] == b"\x76\x2f\x31\x01"
@@ -235,11 +226,11 @@ def test_exr_checked_before_rendering(tmp_path):
 
 
 def test_help_lists_subcommands_and_estimators(tmp_path):
-    r = run_cli("--help", cwd=tmp_path)
+    r = run_app("--help", cwd=tmp_path)
     assert r.returncode == 0
     for word in ("render", "demo", "planes", "reference"):
         assert word in r.stdout
-    r = run_cli("render", "--help", cwd=tmp_path)
+    r = run_app("render", "--help", cwd=tmp_path)
     assert r.returncode == 0
     for text in ("--photons", "4000", "--passes", "8", "--spp", "planes", "reference"):
         assert text in r.stdout
@@ -251,11 +242,11 @@ def test_demo_writes_the_comparison(tmp_path):
     assumed (the showcase's own run is ``make demo``; here a small scene and budget)."""
     import imageio.v3 as iio
 
-    r = run_cli("render", SCENE, "--estimator", "reference", "--passes", "4", "--out",
+    r = run_app("render", SCENE, "--estimator", "reference", "--passes", "4", "--out",
                 "ref.npz", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     specs = "planes,mis:plane-t1t2+planes"
-    r = run_cli("demo", SCENE, "--out", "demo", "--time", "0.4", "--photons", "200",
+    r = run_app("demo", SCENE, "--out", "demo", "--time", "0.4", "--photons", "200",
                 "--estimators", specs, "--reference", "ref.npz", cwd=tmp_path, timeout=300)
     assert r.returncode == 0, r.stderr
     out = tmp_path / "demo"

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from app_support import run_app
 
 from psurf_core import load_scene
 from psurf_core.estimators import parse_estimator
@@ -38,14 +39,6 @@ max_scatter = 2
 """
 
 ROW_KEYS = {"estimator", "passes", "mean_variance", "relmse", "ratio"}
-
-
-def run_app(*args, cwd: Path, timeout: float = 120.0) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    env["MPLBACKEND"] = "Agg"
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
-    return subprocess.run([sys.executable, str(ROOT / "app.py"), *map(str, args)], cwd=cwd,
-                          env=env, capture_output=True, text=True, timeout=timeout)
 
 
 @pytest.fixture(scope="module")

@@ -10,14 +10,12 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import os
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from app_support import run_app
 from dask.distributed import LocalCluster
 
 from psurf_core import load_scene, parse_estimator
@@ -113,13 +111,9 @@ def test_compare_cli_on_the_cluster(cluster, tmp_path):
     sc = tmp_path / "tiny.toml"
     text = (ROOT / "scenes" / "area.toml").read_text().replace("[64, 48]", "[16, 12]")
     sc.write_text(text + "\n[render]\nmin_scatter = 2\nmax_scatter = 2\n")
-    env = {**os.environ, "MPLBACKEND": "Agg",
-           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    r = subprocess.run([sys.executable, str(ROOT / "app.py"), "compare", str(sc),
-                        "--estimators", "planes,points", "--time", "1", "--photons", "300",
-                        "--reference-time", "1", "--dask", cluster.scheduler_address,
-                        "--out", str(tmp_path / "o")],
-                       capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
+    r = run_app("compare", sc, "--estimators", "planes,points", "--time", "1", "--photons",
+                "300", "--reference-time", "1", "--dask", cluster.scheduler_address,
+                "--out", tmp_path / "o", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     data = json.loads((tmp_path / "o" / "compare.json").read_text())
     assert data["results"][0]["ratio"] == 1.0

@@ -4,12 +4,10 @@ pass image gives them); files that are not the same render's passes are refused.
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
-from benchmark_support import ROOT, run_benchmark
+from app_support import run_app
+from benchmark_support import run_benchmark
 from tiny_scene import TINY
 
 from psurf_core.accumulate import Welford
@@ -21,10 +19,8 @@ PHOTONS = 120
 
 
 def _render(scene_path, out, seed, passes, photons=PHOTONS):
-    subprocess.run([sys.executable, str(ROOT / "app.py"), "render", str(scene_path),
-                    "--estimator", "planes", "--photons", str(photons), "--passes", str(passes),
-                    "--seed", str(seed), "--out", str(out)], check=True, cwd=ROOT,
-                   capture_output=True)
+    run_app("render", scene_path, "--estimator", "planes", "--photons", photons, "--passes",
+            passes, "--seed", seed, "--out", out, check=True)
 
 
 def _merge(*args):

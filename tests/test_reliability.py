@@ -12,13 +12,11 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from app_support import run_app
 from tiny_scene import TINY
 
 from psurf_core import reliability as rl
@@ -268,13 +266,9 @@ def test_compare_cli_prints_the_warning(tiny, tmp_path):
     rng = np.random.default_rng(9)
     heavy = np.where(rng.random((200, h, w, 3)) < 1 / 100, 300.0, 1.0)
     _reference_npz(tmp_path / "heavy.npz", scene, heavy)
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    env["MPLBACKEND"] = "Agg"
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     argv = ["compare", d / "tiny.toml", "--estimators", "planes", "--time", "0.5",
             "--photons", "200", "--reference", tmp_path / "heavy.npz", "--out", tmp_path / "cli"]
-    r = subprocess.run([sys.executable, str(ROOT / "app.py"), *map(str, argv)], cwd=tmp_path,
-                       env=env, capture_output=True, text=True, timeout=120)
+    r = run_app(*argv, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     # (one run with compare's default r2 sampler adds its own warning: see test_compare)
     warn = [ln for ln in r.stderr.splitlines()

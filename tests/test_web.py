@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import io
 import os
-import subprocess
-import sys
 import urllib.error
 import urllib.request
 from pathlib import Path
 
 import numpy as np
 import pytest
+from app_support import run_app
 from web_support import (
     READY_TIMEOUT,
     ROOT,
@@ -245,9 +244,7 @@ def test_bad_upload_then_good(server, driver, tmp_path):
     bad = tmp_path / "broken.toml"
     bad.write_text((ROOT / "scenes" / "point.toml").read_text().replace(
         "sigma_s = 0.8", "sigma_s = -1.0", 1))
-    cli = subprocess.run([sys.executable, str(ROOT / "app.py"), "render", str(bad),
-                          "--estimator", "planes", "--out", str(tmp_path / "x.npz")],
-                         capture_output=True, text=True, timeout=120)
+    cli = run_app("render", bad, "--estimator", "planes", "--out", tmp_path / "x.npz")
     assert cli.returncode == 2
     expected = cli.stderr.strip().removeprefix("psurf: error: ").replace(str(bad), bad.name)
     d.find_element(By.ID, "upload").send_keys(str(bad))

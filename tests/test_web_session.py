@@ -5,11 +5,10 @@ directly, :class:`ui.web.model.WebSession`)."""
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from app_support import run_app
 from web_support import ROOT, wait_for
 
 
@@ -22,8 +21,7 @@ from web_support import ROOT, wait_for
     (["--host", "no.such.host.invalid"], "--host no.such.host.invalid: not an address"),
 ])
 def test_serve_flags_one_line(args, message):
-    r = subprocess.run([sys.executable, str(ROOT / "app.py"), "serve", *args], cwd=ROOT,
-                       capture_output=True, text=True, timeout=120)
+    r = run_app("serve", *args)
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("psurf: error: " + message), r.stderr
