@@ -44,6 +44,14 @@ __all__ = ["DistributedError", "WorkersLostError", "cluster_client", "render_dis
 #: Seconds to wait for a scheduler (``address``) to answer.
 CONNECT_TIMEOUT = 10.0
 
+#: How a local cluster (``workers=N``, and the tests' clusters) is started: worker processes
+#: of one thread on the loopback. The scheduler's HTTP server always starts (``None`` means
+#: its default port, 8787); on a free port of the loopback instead, two clusters at once (two
+#: runs, two test workers) do not race for 8787 (the loser retried on another port and left
+#: an unclosed socket: a ResourceWarning, an error under pytest).
+LOCAL_CLUSTER = {"processes": True, "threads_per_worker": 1, "host": "127.0.0.1",
+                 "dashboard_address": "127.0.0.1:0"}
+
 #: Seconds a run waits with no worker at all (a nanny's restart or a new worker may come)
 #: before it gives up with :class:`WorkersLostError`.
 NO_WORKER_TIMEOUT = 30.0
@@ -113,8 +121,7 @@ def cluster_client(address: str | None = None, workers: int | None = None):
             if workers < 1:
                 raise DistributedError(f"the worker count must be >= 1, got {workers}")
             try:
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None,
+                cluster = LocalCluster(n_workers=workers, **LOCAL_CLUSTER,
                                        silence_logs=logging.ERROR)
                 client = Client(cluster, set_as_default=False)
             except (OSError, TimeoutError, RuntimeError) as e:

@@ -17,12 +17,11 @@ ROOT = Path(__file__).resolve().parent.parent
 APP = ROOT / "app.py"
 
 
-def app_env(**extra: str) -> dict[str, str]:
-    """The child's environment (module docstring), with ``extra`` variables set."""
+def app_env() -> dict[str, str]:
+    """The child's environment (module docstring)."""
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     env["MPLBACKEND"] = "Agg"
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
-    env.update(extra)
     return env
 
 

@@ -19,7 +19,12 @@ from app_support import run_app
 from dask.distributed import LocalCluster
 
 from psurf_core import load_scene, parse_estimator
-from psurf_core.distributed import DistributedError, cluster_client, render_distributed
+from psurf_core.distributed import (
+    LOCAL_CLUSTER,
+    DistributedError,
+    cluster_client,
+    render_distributed,
+)
 from psurf_core.render import RenderSettings, render
 from ui.cli.parallel import maybe_distributed
 
@@ -30,8 +35,7 @@ SETTINGS = RenderSettings(photons=400)
 @pytest.fixture(scope="module")
 def cluster():
     try:
-        c = LocalCluster(n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1",
-                         dashboard_address=None, silence_logs=logging.ERROR)
+        c = LocalCluster(n_workers=2, **LOCAL_CLUSTER, silence_logs=logging.ERROR)
     except Exception as e:  # no processes, no loopback sockets, ...
         pytest.skip(f"dask cannot start a local cluster of 2 worker processes on 127.0.0.1 "
                     f"here: {type(e).__name__}: {e}")
@@ -118,3 +122,30 @@ def test_compare_cli_on_the_cluster(cluster, tmp_path):
     data = json.loads((tmp_path / "o" / "compare.json").read_text())
     assert data["results"][0]["ratio"] == 1.0
     assert all(x["passes"] >= 1 for x in data["results"])
+
+
+def test_a_local_cluster_does_not_race_for_the_dashboard_port():
+    """Two clusters at once (two runs with --workers, two test workers) must not both ask for
+    the scheduler's default HTTP port: the loser retried on another and left an unclosed
+    socket behind (a ResourceWarning, an error under this suite's warning filter)."""
+    import gc
+    import socket
+    import warnings
+
+    held = socket.socket()
+    try:
+        held.bind(("0.0.0.0", 8787))  # the default port, as another cluster would hold it
+        held.listen()
+    except OSError:
+        pass  # already held by something else: the same situation
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with LocalCluster(n_workers=0, **LOCAL_CLUSTER, silence_logs=logging.CRITICAL) as c:
+                link = c.dashboard_link
+            gc.collect()
+    finally:
+        held.close()
+    assert link.startswith("http://127.0.0.1:") and ":8787/" not in link, link
+    leaks = [w for w in caught if issubclass(w.category, ResourceWarning)]
+    assert not leaks, [str(w.message) for w in leaks]

@@ -31,7 +31,7 @@ from dask.distributed import Client, LocalCluster
 import app
 from psurf_core import checkpoint as ck
 from psurf_core import load_scene, parse_estimator
-from psurf_core.distributed import WorkersLostError, render_distributed
+from psurf_core.distributed import LOCAL_CLUSTER, WorkersLostError, render_distributed
 from psurf_core.render import RenderSettings, render
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
@@ -46,9 +46,7 @@ PASSES = 12
 
 def cluster_and_client():
     try:
-        cluster = LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
-                               host="127.0.0.1", dashboard_address=None,
-                               silence_logs=logging.CRITICAL)
+        cluster = LocalCluster(n_workers=2, **LOCAL_CLUSTER, silence_logs=logging.CRITICAL)
     except Exception as e:  # no processes, no loopback sockets, ...
         pytest.skip(f"dask cannot start a local cluster of 2 worker processes on 127.0.0.1 "
                     f"here: {type(e).__name__}: {e}")
@@ -135,8 +133,7 @@ def test_no_worker_left_is_a_clear_failure(scene):
     import subprocess
 
     try:
-        cluster = LocalCluster(n_workers=0, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.CRITICAL)
+        cluster = LocalCluster(n_workers=0, **LOCAL_CLUSTER, silence_logs=logging.CRITICAL)
     except Exception as e:
         pytest.skip(f"dask cannot start a local scheduler here: {type(e).__name__}: {e}")
     workers = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker",
