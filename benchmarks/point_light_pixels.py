@@ -117,5 +117,6 @@ def rendered(scene, args, rows, cols, idx) -> None:
           f"{args.photons} photons, {args.spp} rays a pixel, {time.perf_counter() - t:.0f} "
           f"s; median pass {np.median(sums):.2f}, largest {sums.max():.1f})")
 
+
 if __name__ == "__main__":
     sys.exit(main())

@@ -45,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from psurf_core.estimators import parse_estimator  # noqa: E402
 from psurf_core.metrics import relative_weight  # noqa: E402
-from psurf_core.render import RenderSettings, render_pass  # noqa: E402
+from psurf_core.render import RenderSettings, render_pass, warm_up  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
 from psurf_core.share_pilot import measure_set, model, set_alone  # noqa: E402
 
@@ -85,7 +85,7 @@ def main(argv=None) -> int:
     weight = relative_weight(ref)
     rows = []
     for est, share in sets:
-        render_pass(scene, est, 0, 99, settings)  # warm: compile, allocate
+        warm_up(scene, est, settings)
         c0, c1, vp = measure_set(scene, est, settings, weight, sizes, args.passes, 100,
                                  args.split_passes, 7, max(args.photons // 2, 1))
         rows.append({"members": [t.label for t in est.techniques], "present_share": share,

@@ -8,8 +8,11 @@ declared dependency: a missing install fails).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import logging
+import socket
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -128,10 +131,6 @@ def test_a_local_cluster_does_not_race_for_the_dashboard_port():
     """Two clusters at once (two runs with --workers, two test workers) must not both ask for
     the scheduler's default HTTP port: the loser retried on another and left an unclosed
     socket behind (a ResourceWarning, an error under this suite's warning filter)."""
-    import gc
-    import socket
-    import warnings
-
     held = socket.socket()
     try:
         held.bind(("0.0.0.0", 8787))  # the default port, as another cluster would hold it
