@@ -32,6 +32,12 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
+from .memory_release import keep_freed_memory  # noqa: E402
+
+# Before any pass allocates: a pass's arrays are reused from the heap instead of faulted in
+# again from the system every pass (memory_release).
+keep_freed_memory()
+
 from .accumulate import Welford  # noqa: E402
 from .camera import camera_rays  # noqa: E402
 from .estimators import parse_estimator  # noqa: E402

@@ -16,6 +16,14 @@ after pass. Two things would keep resident memory rising without any leak:
 
 Neither changes a value anyone reads: released pages read as zeros when touched again, and
 only memory past what a lease hands out is released.
+
+The opposite holds within a pass: it allocates and frees the same few-MiB arrays (screen spans,
+candidate counts, numpy temporaries) every time, and glibc's defaults hand them back to the
+system at every free (its trim threshold is twice the largest block it has mapped), so the
+next pass takes a page fault for every page again: 7.6 % of a ``planes`` pass on
+``area.toml`` was the kernel's page faults (``perf``, 2026-12-06). :func:`keep_freed_memory`
+(called when ``psurf_core`` is imported) keeps up to :data:`TRIM_THRESHOLD` of freed heap for
+the next pass; the periodic :func:`release_free_memory` still hands it back in long runs.
 """
 
 from __future__ import annotations
@@ -23,10 +31,22 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["TRIM_SECONDS", "release_free_memory", "release_pages"]
+__all__ = ["MMAP_THRESHOLD", "TRIM_SECONDS", "TRIM_THRESHOLD", "keep_freed_memory",
+           "release_free_memory", "release_pages"]
 
 #: Seconds between :func:`release_free_memory` calls of a long render.
 TRIM_SECONDS = 30.0
+
+#: Blocks from this size get their own mapping (glibc ``M_MMAP_THRESHOLD``; its default
+#: adapts from 128 KiB up to this, 32 MiB on 64-bit): a pass's arrays at 64x48 to 256x192
+#: come from the heap and are reused; larger ones are handed back at once, as before.
+MMAP_THRESHOLD = 32 << 20
+#: Free memory at the top of the heap kept for reuse (glibc ``M_TRIM_THRESHOLD``). The
+#: mapping threshold is what matters: with it alone fixed, a ``planes`` pass on ``area.toml``
+#: took ~170-230 page faults at a trim threshold of 16 to 256 MiB, against 1500-3200 with
+#: glibc's defaults (the same peak resident memory, ~225 MiB; ``ru_minflt``, 2026-12-06).
+TRIM_THRESHOLD = 64 << 20
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # <malloc.h>
 
 _MADV_DONTNEED = 4  # <sys/mman.h> on Linux
 _PAGE = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
@@ -41,6 +61,18 @@ def release_free_memory() -> bool:
         return False
     libc.malloc_trim(0)
     return True
+
+
+def keep_freed_memory() -> bool:
+    """Keep freed heap for the next pass (glibc ``mallopt``: :data:`MMAP_THRESHOLD`,
+    :data:`TRIM_THRESHOLD`; see the module docstring); False where there is no glibc
+    (nothing done). ``planes`` on ``area.toml``: 0.91x the CPU a pass (separate processes,
+    alternating, 2026-12-06: ``benchmarks/before_after.py``, docs/study.md)."""
+    libc = _libc()
+    if libc is None:
+        return False
+    return bool(libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+                and libc.mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD))
 
 
 def release_pages(buf, keep: int) -> bool:
@@ -79,6 +111,7 @@ def _libc():
                 lib = ctypes.CDLL("libc.so.6")
                 lib.malloc_trim.argtypes = [ctypes.c_size_t]
                 lib.madvise.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+                lib.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
                 _LIBC = lib
             except (OSError, AttributeError):
                 pass
