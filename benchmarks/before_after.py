@@ -10,8 +10,9 @@ Usage::
 round runs one child process per tree and estimator, alternating old and new, so the two
 trees see the same machine load. A child imports ``psurf_core`` from its tree only (the tree
 first on ``sys.path``), renders one warm-up pass (numba compiles, buffers are allocated),
-then times ``--passes`` passes of :func:`psurf_core.render.render_pass` (wall clock) and
-returns the median pass time and the images' sum of squares. It uses only the API both
+then times ``--passes`` passes of :func:`psurf_core.render.render_pass` (wall clock; also
+the CPU time of the process and its minor page faults, ``getrusage``) and returns them with
+the images. It uses only the API both
 checkouts share (``load_scene``, ``parse_estimator``, ``RenderSettings``, ``render_pass``),
 so the same harness measures both: unlike each checkout's own ``make bench``, whose
 definitions changed with the restructure.
@@ -32,7 +33,7 @@ import time
 from pathlib import Path
 
 _CHILD = r"""
-import sys, time, json, io
+import sys, time, json, io, resource
 import numpy as np
 tree, scene_path, spec = sys.argv[1:4]
 photons, passes = int(sys.argv[4]), int(sys.argv[5])
@@ -46,15 +47,18 @@ scene = load_scene(scene_path)
 est = parse_estimator(spec, scene)
 st = RenderSettings(photons=photons)
 render_pass(scene, est, 10_000, 7, st)          # warm-up: compile, allocate
-times, imgs = [], []
+times, cpu, faults, imgs = [], [], [], []
 for i in range(passes):
-    t0 = time.perf_counter()
+    f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    t0, c0 = time.perf_counter(), time.process_time()
     img = render_pass(scene, est, i, 7, st)
     times.append(time.perf_counter() - t0)
+    cpu.append(time.process_time() - c0)
+    faults.append(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
     imgs.append(img)
 buf = io.BytesIO()
 np.save(buf, np.stack(imgs))
-sys.stdout.write(json.dumps({"times": times}) + "\n")
+sys.stdout.write(json.dumps({"times": times, "cpu": cpu, "faults": faults}) + "\n")
 sys.stdout.flush()
 with open(sys.argv[6], "wb") as f:
     f.write(buf.getvalue())
@@ -93,21 +97,35 @@ def main(argv=None) -> int:
                  time.gmtime()), "load_before": os.getloadavg(), "estimators": {}}
     for spec in a.estimators.split(","):
         per = {k: [] for k in trees}
+        cpu = {k: [] for k in trees}
+        faults = {k: [] for k in trees}
         for r in range(a.rounds):
             order = ("old", "new") if r % 2 == 0 else ("new", "old")
             for k in order:
                 npy = a.out.parent / f"before_after_{k}.npy"
-                per[k].extend(_run(trees[k], scene, spec, a.photons, a.passes, npy)["times"])
+                got = _run(trees[k], scene, spec, a.photons, a.passes, npy)
+                per[k].extend(got["times"])
+                # (a checkout whose child predates these keys reports none)
+                cpu[k].extend(got.get("cpu", []))
+                faults[k].extend(got.get("faults", []))
         imgs = {k: np.load(a.out.parent / f"before_after_{k}.npy") for k in trees}
         scale = max(float(np.abs(imgs["old"]).max()), 1e-300)
         diff = float(np.abs(imgs["old"] - imgs["new"]).max()) / scale
         med = {k: statistics.median(v) for k, v in per.items()}
+        med_cpu = {k: statistics.median(v) if v else None for k, v in cpu.items()}
+        med_faults = {k: statistics.median(v) if v else None for k, v in faults.items()}
         res["estimators"][spec] = {
             "median_pass_seconds": med, "new_over_old": med["new"] / med["old"],
-            "pass_seconds": per, "max_pixel_difference_relative_to_peak": diff,
+            "pass_seconds": per, "median_pass_cpu_seconds": med_cpu, "pass_cpu_seconds": cpu,
+            "median_pass_page_faults": med_faults, "pass_page_faults": faults,
+            "max_pixel_difference_relative_to_peak": diff,
             "bit_identical": bool(np.array_equal(imgs["old"], imgs["new"]))}
+        extra = ""
+        if med_cpu["old"] and med_cpu["new"]:
+            extra = (f"; CPU new/old {med_cpu['new'] / med_cpu['old']:.3f}, page faults a pass "
+                     f"old {med_faults['old']:.0f}, new {med_faults['new']:.0f}")
         print(f"{spec:>14}: old {med['old']*1e3:8.1f} ms/pass, new {med['new']*1e3:8.1f} "
-              f"ms/pass, new/old {med['new']/med['old']:.3f}; images: max diff "
+              f"ms/pass, new/old {med['new']/med['old']:.3f}{extra}; images: max diff "
               f"{diff:.2e} of the peak, bit-identical {res['estimators'][spec]['bit_identical']}",
               flush=True)
     res["load_after"] = os.getloadavg()
