@@ -7,9 +7,8 @@ given, otherwise the memory this machine has available now (:func:`available_mem
 parts, the limit, and the largest value of the size behind the largest part that would fit.
 :func:`check_mesh_files` does the same for the meshes a scene file names, before trimesh
 loads them. :func:`photon_limit` is the largest photon count per pass that fits the window's
-progressive render (its photon slider's bound). :func:`release_free_memory` and
-:func:`release_pages` (from :mod:`psurf_core.memory_release`, kept here for the commands)
-hand memory back to the system during long runs.
+progressive render (its photon slider's bound). Memory handed back to the system during long
+runs: :mod:`psurf_core.memory_release`.
 """
 
 from __future__ import annotations
@@ -18,10 +17,9 @@ import math
 import os
 
 from .budget import MIB, TRIANGLE_LOAD_BYTES, Need, format_bytes, progressive_need
-from .memory_release import TRIM_SECONDS, release_free_memory, release_pages
 
-__all__ = ["TRIM_SECONDS", "BudgetError", "available_memory", "check", "check_mesh_files",
-           "limit", "photon_limit", "release_free_memory", "release_pages"]
+__all__ = ["BudgetError", "available_memory", "check", "check_mesh_files", "limit",
+           "photon_limit"]
 
 
 class BudgetError(ValueError):

@@ -3,9 +3,9 @@
 A long render or the window's background render allocates and frees the same sizes pass
 after pass. Two things would keep resident memory rising without any leak:
 
-* glibc keeps freed heap up to its trim threshold (~16 MiB here, which the next pass touches
-  again): :func:`release_free_memory` (``malloc_trim``) hands it back; ``render`` calls it
-  every :data:`TRIM_SECONDS`;
+* glibc keeps freed heap up to its trim threshold (:data:`TRIM_THRESHOLD`, which the next
+  pass touches again): :func:`release_free_memory` (``malloc_trim``) hands it back; every
+  pass calls it at most every :data:`TRIM_SECONDS` (:func:`trim_now_and_then`);
 * memory kept to be reused (:class:`psurf_core.kernels.buffers.HitBuffers`) is sized for the
   largest need so far and would stay resident as far as any earlier pass wrote into it: a
   high-water mark that only rises, because each new record (a trace's outputs span the
@@ -23,16 +23,19 @@ system at every free (its trim threshold is twice the largest block it has mappe
 next pass takes a page fault for every page again: 7.6 % of a ``planes`` pass on
 ``area.toml`` was the kernel's page faults (``perf``, 2026-12-06). :func:`keep_freed_memory`
 (called when ``psurf_core`` is imported) keeps up to :data:`TRIM_THRESHOLD` of freed heap for
-the next pass; the periodic :func:`release_free_memory` still hands it back in long runs.
+the next pass; :func:`trim_now_and_then` (every :func:`psurf_core.render.render_pass` calls
+it) still hands it back every :data:`TRIM_SECONDS` in long runs, the window's and the web
+sessions' included.
 """
 
 from __future__ import annotations
 
 import os
 import sys
+import time
 
 __all__ = ["MMAP_THRESHOLD", "TRIM_SECONDS", "TRIM_THRESHOLD", "keep_freed_memory",
-           "release_free_memory", "release_pages"]
+           "release_free_memory", "release_pages", "trim_now_and_then"]
 
 #: Seconds between :func:`release_free_memory` calls of a long render.
 TRIM_SECONDS = 30.0
@@ -61,6 +64,20 @@ def release_free_memory() -> bool:
         return False
     libc.malloc_trim(0)
     return True
+
+
+#: When :func:`trim_now_and_then` last trimmed (``time.monotonic``; a list: set in place).
+_LAST_TRIM = [time.monotonic()]
+
+
+def trim_now_and_then(seconds: float = TRIM_SECONDS) -> bool:
+    """:func:`release_free_memory` if ``seconds`` have passed since this process last did
+    so here; whether it did (a race between threads at worst trims twice)."""
+    now = time.monotonic()
+    if now - _LAST_TRIM[0] < seconds:
+        return False
+    _LAST_TRIM[0] = now
+    return release_free_memory()
 
 
 def keep_freed_memory() -> bool:

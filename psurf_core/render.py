@@ -23,6 +23,7 @@ from .estimators import Estimator
 from .geometry import Blockers, blockers_of
 from .interrupt import check, held
 from .kernels.fused import MisSet, fused_pass
+from .memory_release import trim_now_and_then
 from .mis import mis_weights
 from .photon_sampler import batch_draws, check_photon_sampler, sequence_start
 from .pixel_jitter import check_sampler, pass_jitter
@@ -310,6 +311,8 @@ def render_pass(
     else:
         per_ray = photon_pass(scene, estimator, rays, photon_ss, settings, pass_index,
                               blockers, record, tally, seed) / settings.photons
+    # Freed memory is kept for the next pass (memory_release); long runs hand it back.
+    trim_now_and_then()
     return pass_image(cam, rays, per_ray, settings.spp)
 
 

@@ -141,3 +141,30 @@ def test_keep_freed_memory_reuses_a_pass_worth_of_arrays_without_page_faults():
     assert _second_round_faults("none") > 0.8 * pages  # the control: faults every page
     assert _second_round_faults("call") < 0.05 * pages
     assert _second_round_faults("import") < 0.05 * pages  # psurf_core calls it on import
+
+
+def test_trim_now_and_then_trims_once_a_period(monkeypatch):
+    from psurf_core import memory_release as mr
+
+    calls = []
+    monkeypatch.setattr(mr, "release_free_memory", lambda: calls.append(1) or True)
+    monkeypatch.setattr(mr, "_LAST_TRIM", [0.0])
+    assert mr.trim_now_and_then(seconds=1e-9)  # long past: trims
+    assert not mr.trim_now_and_then(seconds=3600.0)  # just trimmed: not again
+    assert calls == [1]
+
+
+def test_every_render_pass_lets_long_runs_trim(monkeypatch):
+    """The window and the web sessions render passes in loops of their own: the period's trim
+    must come from ``render_pass`` itself."""
+    from psurf_core import render
+    from psurf_core.estimators import parse_estimator
+    from psurf_core.scene_io import load_scene
+
+    seen = []
+    monkeypatch.setattr(render, "trim_now_and_then", lambda: seen.append(1))
+    root = os.path.dirname(os.path.dirname(__file__))
+    scene = load_scene(os.path.join(root, "scenes", "area.toml"))
+    render.render_pass(scene, parse_estimator("beams", scene), 0, 0,
+                       render.RenderSettings(photons=20))
+    assert seen == [1]

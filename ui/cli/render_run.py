@@ -47,7 +47,6 @@ def run_session(args, scene, est, settings, radius, ck, ck_dir, identity, passes
     written (1, the previous one kept), memory or workers lost (1, the passes saved), an
     output that cannot be written (1, none of them written).
     """
-    from psurf_core.budget_check import TRIM_SECONDS, release_free_memory
     from psurf_core.render import RenderResult, render
 
     acc = ck.accumulator if ck is not None else None
@@ -65,16 +64,11 @@ def run_session(args, scene, est, settings, radius, ck, ck_dir, identity, passes
     start_n = acc.n if acc is not None else 0
     bar, close = progress(args.estimator, passes, time_budget, start_n)
 
-    trimmed = [0.0]
-
     def on_pass(i, a, elapsed):
         if ckpt is not None:
             write_checkpoint(ckpt, lambda: ckpt.on_pass(i, a, elapsed))
         if bar is not None:
             bar(i, a, elapsed)
-        if elapsed - trimmed[0] >= TRIM_SECONDS:  # long runs stay flat (glibc keeps pages)
-            trimmed[0] = elapsed
-            release_free_memory()
 
     try:
         if acc is not None and passes is not None and acc.n >= passes:
