@@ -12,10 +12,9 @@ trees see the same machine load. A child imports ``psurf_core`` from its tree on
 first on ``sys.path``), renders one warm-up pass (numba compiles, buffers are allocated),
 then times ``--passes`` passes of :func:`psurf_core.render.render_pass` (wall clock; also
 the CPU time of the process and its minor page faults, ``getrusage``) and returns them with
-the images. It uses only the API both
-checkouts share (``load_scene``, ``parse_estimator``, ``RenderSettings``, ``render_pass``),
-so the same harness measures both: unlike each checkout's own ``make bench``, whose
-definitions changed with the restructure.
+the images. It uses only the API both checkouts share (``load_scene``, ``parse_estimator``,
+``RenderSettings``, ``render_pass``), so the same harness measures both: unlike each
+checkout's own ``make bench``, whose definitions changed with the restructure.
 
 The images of both trees are compared too (the largest relative difference of a pixel over
 the passes), since "nothing got slower" means little if the work changed.

@@ -20,12 +20,12 @@ only memory past what a lease hands out is released.
 The opposite holds within a pass: it allocates and frees the same few-MiB arrays (screen spans,
 candidate counts, numpy temporaries) every time, and glibc's defaults hand them back to the
 system at every free (its trim threshold is twice the largest block it has mapped), so the
-next pass takes a page fault for every page again: 7.6 % of a ``planes`` pass on
-``area.toml`` was the kernel's page faults (``perf``, 2026-12-06). :func:`keep_freed_memory`
-(called when ``psurf_core`` is imported) keeps up to :data:`TRIM_THRESHOLD` of freed heap for
-the next pass; :func:`trim_now_and_then` (every :func:`psurf_core.render.render_pass` calls
-it) still hands it back every :data:`TRIM_SECONDS` in long runs, the window's and the web
-sessions' included.
+next pass takes a page fault for every page again: 7.3 % of a ``planes`` pass on
+``area.toml`` was the kernel's page faults (``perf``, 2026-12-06, docs/study.md).
+:func:`keep_freed_memory` (called when ``psurf_core`` is imported) keeps up to
+:data:`TRIM_THRESHOLD` of freed heap for the next pass; :func:`trim_now_and_then` (every
+:func:`psurf_core.render.render_pass` calls it) still hands it back every
+:data:`TRIM_SECONDS` in long runs, the window's and the web sessions' included.
 """
 
 from __future__ import annotations
@@ -83,8 +83,8 @@ def trim_now_and_then(seconds: float = TRIM_SECONDS) -> bool:
 def keep_freed_memory() -> bool:
     """Keep freed heap for the next pass (glibc ``mallopt``: :data:`MMAP_THRESHOLD`,
     :data:`TRIM_THRESHOLD`; see the module docstring); False where there is no glibc
-    (nothing done). ``planes`` on ``area.toml``: 0.91x the CPU a pass (separate processes,
-    alternating, 2026-12-06: ``benchmarks/before_after.py``, docs/study.md)."""
+    (nothing done). A ``planes`` pass on ``area.toml`` faults 10 pages instead of ~2300
+    (``benchmarks/before_after.py``, 2026-12-06, docs/study.md)."""
     libc = _libc()
     if libc is None:
         return False

@@ -10,6 +10,7 @@ resident for the rest of the run. Residency is read from ``/proc/self/pagemap`` 
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 
 import numpy as np
@@ -123,8 +124,6 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 
 
 def _second_round_faults(how: str) -> int:
-    import subprocess
-
     # A child: this process imported psurf_core, which calls keep_freed_memory, and the
     # control must start from glibc's defaults.
     env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(__file__))}
