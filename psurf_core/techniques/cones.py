@@ -205,6 +205,17 @@ def surface_grid(G, short, far):
 
 
 # ------------------------------------------------------------------------- Create
+def footprint(scene, apex, axis, c, s, length=None):
+    """(M, 1 + RING_VERTICES, 3) a nappe's footprint solid (``Primitives.cloud``): its apex
+    and a ring circumscribing its circle at slant length ``length`` ((M,); None: as far as
+    the medium box reaches from the apex, since a hit's ``x0`` is in the box), about unit
+    ``axis`` with half-angle cosine ``c`` and sine ``s``. Every point of the nappe within
+    that slant length lies in the solid."""
+    L = box_reach(scene, apex) if length is None else length
+    base = ring(apex + (L * c)[:, None] * axis, axis, L * s)
+    return np.concatenate([apex[:, None], base], axis=1)
+
+
 class PhotonCone(Technique):
     """The photon cone; ``short`` restricts ``t1* < T1`` (track-length)."""
 
@@ -222,10 +233,7 @@ class PhotonCone(Technique):
         c1, s1, _ = radial(g["w1"], g["w2"])
         lo, hi = cone_bounds(g["x1"], g["w2"], c1, s1, g["T1"] if self.short else None)
         lo, hi = clip_bounds(ctx.scene, lo, hi)
-        # Footprint: the apex and a ring circumscribing the base circle at slant length L.
-        L = g["T1"] if self.short else box_reach(ctx.scene, g["x1"])
-        base = ring(g["x1"] + (L * c1)[:, None] * g["w2"], g["w2"], L * s1)
-        cloud = np.concatenate([g["x1"][:, None], base], axis=1)
+        cloud = footprint(ctx.scene, g["x1"], g["w2"], c1, s1, g["T1"] if self.short else None)
         # x0 lies on the nappe within the slant length L (short: t1 < T1; long: x0 in the
         # box), so every segment x1 -> x0 lies in the hull of the footprint.
         clear = cull.hull_clear(ctx.blockers, ctx.scene,

@@ -69,9 +69,13 @@ class SingleScatter(Technique):
                     one_sided=(kind != KIND_CODE["point"]).astype(float), kind=kind,
                     beta=paths.beta[photon, 0])
 
-    def _prims(self, photon, lo, hi, ctx, data) -> Primitives:
+    def _prims(self, photon, lo, hi, ctx, data, hull=None, cloud=None) -> Primitives:
+        """Primitives of ``photon`` (K = 1) with bounds ``[lo, hi]`` clipped to the box and
+        the footprint the spans visit (``hull`` or ``cloud``: ``Primitives``; neither: the
+        screen rectangle)."""
         lo, hi = clip_bounds(ctx.scene, lo, hi)
-        return Primitives(self.name, photon, np.ones(photon.size, np.int64), lo, hi, data)
+        return Primitives(self.name, photon, np.ones(photon.size, np.int64), lo, hi, data,
+                          hull=hull, cloud=cloud)
 
 
 def columns(cls, d: dict, **extra) -> dict:

@@ -37,8 +37,9 @@ from ..pdfs import MESH, position_pdfs
 from ..records import Vec, table
 from . import grids
 from .base import Compiled, Primitives, cross, dot, segments_clear
+from .bounds import wedge_hull
 from .single import SingleScatter, columns, sweep_bounds
-from .surface_common import NDP_MIN, cached_solve, camera_term, solve_columns
+from .surface_common import NDP_MIN, box_reach, cached_solve, camera_term, solve_columns
 
 
 class SPlaneGeometry(NamedTuple):
@@ -321,6 +322,9 @@ class SinglePlane(SingleScatter):
             far = np.where(tri[:, None], org, org + eu + ev)  # a triangle has 3 corners
             corners = [org, org + eu, org + ev, far]
             lo, hi = np.minimum.reduce(corners), np.maximum.reduce(corners)
+            # The patch as a convex polygon (a triangle's last vertex repeated).
+            hull = np.stack([org, org + eu, np.where(tri[:, None], org + ev, far), org + ev],
+                            axis=1)
         else:
             if self.which == "ut":
                 org, A, amax = x - u[:, None] * eu, eu, np.where(tri, 1.0 - v, 1.0)
@@ -332,11 +336,16 @@ class SinglePlane(SingleScatter):
             # The base segment swept along w (to T for short strips, to infinity for long).
             lo, _ = sweep_bounds(lo0, w, w, T if self.short else None)
             _, hi = sweep_bounds(hi0, w, w, T if self.short else None)
+            # The strip as a parallelogram out to t = T (short), or as far as a point of it
+            # in the box can be from its base (the box's reach from org plus the base's
+            # length): the spans then visit the pixels it covers, not its whole rectangle.
+            reach = T if self.short else box_reach(scene, org) + amax * np.linalg.norm(A, axis=1)
+            hull = wedge_hull(scene, org, A, B, amax, reach)
         data = table(SPlaneGeometry, **columns(
             SPlaneGeometry, d, org=org, A=A, B=B, amax=amax, tri=tri.astype(float),
             strip=float(self.which != "uv"), u=u, v=v, p_uv=p_uv, p_kept=p_kept,
             **solve_columns(scene, org, A, B)))
-        return self._prims(photon, lo, hi, ctx, data)
+        return self._prims(photon, lo, hi, ctx, data, hull=hull)
 
     def scaled_normal(self, rec):
         """(H, 3) ``e_u x e_v`` / ``e_u x w`` / ``e_v x w`` on records ``rec``."""
