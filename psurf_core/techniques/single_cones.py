@@ -96,15 +96,14 @@ class SingleCone(SingleScatter):
         a = d["axis"]
         # Generator directions c a + sin (cos ph e1 + sin ph e2): component k spans
         # c a_k +- sin sqrt(1 - a_k^2) (e1, e2, a orthonormal).
-        spread = np.sqrt(np.clip(1.0 - c * c, 0.0, None))[:, None] * np.sqrt(
-            np.clip(1.0 - a * a, 0.0, None))
+        sin = np.sqrt(np.clip(1.0 - c * c, 0.0, None))
+        spread = sin[:, None] * np.sqrt(np.clip(1.0 - a * a, 0.0, None))
         length = d["T1"] if self.short else None
         lo, hi = sweep_bounds(d["x1"], c[:, None] * a - spread, c[:, None] * a + spread, length)
         # The compiled walk visits the pixels of the nappe's footprint solid clipped to the
         # box, not its whole screen rectangle (the multiple-scattering cone's; on area.toml
         # a third of the rectangle's pairs were hits).
-        cloud = footprint(ctx.scene, d["x1"], a, c, np.sqrt(np.clip(1.0 - c * c, 0.0, None)),
-                          length)
+        cloud = footprint(ctx.scene, d["x1"], a, c, sin, length)
         return self._prims(photon, lo, hi, ctx, table(
             ConeGeometry, x1=d["x1"], w2=a, c1=c, T1=d["T1"], beta=d["beta"],
             # Not culled: the apex is the light point, which an area light's own quad holds
