@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 #: Figures that are ratios of two measurements of one run (judged against 1, not the drift).
-MACHINE_FREE = ("hit_cost_ratio",)
+MACHINE_FREE = ("hit_cost_ratio", "hit_cost_ratio_separate_runs")
 
 #: Figures where larger is better (the others, CPU ns per hit and the cost ratio, smaller).
 HIGHER_IS_BETTER = ("hits_per_second", "photon_vertices_per_second")
