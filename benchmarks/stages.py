@@ -132,23 +132,19 @@ def steady(scene, spec: str, photons: int, reps: int) -> dict:
     return out
 
 
-def paired_cost_ratio(scene, base: str, spec: str, photons: int, rounds: int,
-                      base_photons: int | None = None) -> dict:
+def paired_cost_ratio(scene, base: str, spec: str, photons: int, rounds: int) -> dict:
     """The CPU cost of one evaluated hit of ``spec`` over ``base``'s, from passes run back to
     back: each round one :func:`stage_pass` of each (seed ``r``, the order alternating), the
     ratio of that round's two ``cpu_ns_per_hit``; the median over the rounds. (Each estimator's
     :func:`steady` median comes from its own stretch of the run, tens of seconds apart, in
-    whatever phase a shared machine is in then; a round's pair shares one.) ``base_photons``:
-    ``base``'s photons a pass (default ``photons``). Kernels should be loaded (a warm-up
-    pass of each, as :func:`steady` runs, comes first here too)."""
-    n_base = photons if base_photons is None else base_photons
-    stage_pass(scene, base, min(n_base, 256))
+    whatever phase a shared machine is in then; a round's pair shares one.) A warm-up pass
+    of each comes first, as in :func:`steady`."""
+    stage_pass(scene, base, min(photons, 256))
     stage_pass(scene, spec, min(photons, 256))
     ratios, each = [], {base: [], spec: []}
     for r in range(rounds):
         order = (base, spec) if r % 2 == 0 else (spec, base)
-        got = {s: stage_pass(scene, s, n_base if s == base else photons, seed=r)["cpu_ns_per_hit"]
-               for s in order}
+        got = {s: stage_pass(scene, s, photons, seed=r)["cpu_ns_per_hit"] for s in order}
         for s in (base, spec):
             each[s].append(got[s])
         ratios.append(got[spec] / got[base])
