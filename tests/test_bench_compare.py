@@ -61,4 +61,3 @@ def test_figures_missing_from_either_run_are_left_out(tmp_path):
     assert bench_compare.load_previous(p) is None
     p.write_text(json.dumps(_doc(1, 1, 1, 1)))
     assert bench_compare.load_previous(p)["headline"]["hit_cost_ratio"] == 1
-
