@@ -13,56 +13,36 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from footprint_support import binned_hits, small_pass
 
-from psurf_core.binning import candidate_pairs, clip_polygons
+from psurf_core.binning import clip_polygons
 from psurf_core.camera import camera_rays
 from psurf_core.geometry import blockers_of
 from psurf_core.scene_io import load_scene
 from psurf_core.techniques import get_technique
 from psurf_core.techniques.base import PassContext
-from psurf_core.trace import trace
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def _hits(tech, prims, scene, rays, ctx, hull, counted=False):
-    """Sorted keys of the hits the binning finds (``counted``: only those with a value:
-    a hull is cut to where hits count, ``techniques.bounds``), and the pairs it tried."""
-    box = (scene.medium.bounds_min, scene.medium.bounds_max)
-    keys, pairs = [], 0
-    for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, 1 << 15, hull, box):
-        pairs += ray.size
-        h = tech.intersect(prims, rays, ray, prim, ctx)
-        if counted:
-            h = h.select(np.any(tech.evaluate(h, prims, None, rays, ctx) != 0.0, axis=1))
-        keys.append(h.ray.astype(np.int64) * (1 << 32) + h.prim)
-    return np.sort(np.concatenate(keys)) if keys else np.zeros(0, np.int64), pairs
 
 
 @pytest.mark.parametrize("camera", ["outside", "inside"])
 @pytest.mark.parametrize("name", ["planes", "plane-t1t2", "plane-t1t3", "plane-t2t3-short"])
 def test_hull_binning_finds_every_rectangle_hit(name, camera):
-    scene = load_scene(ROOT / "scenes" / "area.toml")
-    cam = replace(scene.camera, width=40, height=30)
-    if camera == "inside":
-        cam = replace(cam, position=np.array([0.2, 0.1, -0.5]))
-    scene = replace(scene, camera=cam)
-    blockers = blockers_of(scene)
-    rng = np.random.default_rng(7)
-    rays = camera_rays(scene, 2, rng, blockers=blockers)
-    paths = trace(scene, 150, rng, blockers=blockers)
+    inside = {"position": np.array([0.2, 0.1, -0.5])} if camera == "inside" else {}
+    scene, rays, paths, ctx = small_pass(load_scene(ROOT / "scenes" / "area.toml"), 7, 150,
+                                         spp=2, width=40, height=30, max_pairs=1 << 15,
+                                         **inside)
     tech = get_technique(name)
-    ctx = PassContext(scene, blockers, 0.0, 0, 1 << 15)
     prims = tech.create(paths, ctx)
     assert prims.hull is not None
-    rect, rect_pairs = _hits(tech, prims, scene, rays, ctx, None, counted=True)
-    tight, tight_pairs = _hits(tech, prims, scene, rays, ctx, prims.hull, counted=True)
+    box = (scene.medium.bounds_min, scene.medium.bounds_max)
+    every_rect, rect, rect_pairs = binned_hits(tech, prims, scene, rays, ctx, None, box)
+    every_tight, tight, tight_pairs = binned_hits(tech, prims, scene, rays, ctx, prims.hull,
+                                                  box)
     assert rect.size > 100
     np.testing.assert_array_equal(tight, rect)
     assert tight_pairs < rect_pairs
     # and every hit the hull finds, the rectangle finds
-    every_rect, every_tight = (_hits(tech, prims, scene, rays, ctx, h)[0]
-                               for h in (None, prims.hull))
     assert np.isin(every_tight, every_rect).all()
 
 
@@ -99,8 +79,9 @@ def test_random_parallelograms_conservative():
     prims = Primitives("planes", np.zeros(m, np.int64), np.full(m, 2), lo, hi, data,
                        hull=wedge_hull(scene, x2, w2, w1, T2, T1))
     ctx = PassContext(scene, blockers, 0.0, 0, 1 << 15)
-    rect, _ = _hits(tech, prims, scene, rays, ctx, None)
-    tight, _ = _hits(tech, prims, scene, rays, ctx, prims.hull)
+    box = (scene.medium.bounds_min, scene.medium.bounds_max)
+    rect = binned_hits(tech, prims, scene, rays, ctx, None, box)[0]
+    tight = binned_hits(tech, prims, scene, rays, ctx, prims.hull, box)[0]
     assert rect.size > 100
     np.testing.assert_array_equal(tight, rect)
 

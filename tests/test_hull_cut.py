@@ -12,70 +12,31 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from footprint_support import binned_hits, brute_hits, small_pass, walked_hits
 
-from psurf_core.binning import _spans, candidate_pairs, screen_rects
-from psurf_core.camera import camera_rays
-from psurf_core.geometry import blockers_of
-from psurf_core.kernels.fused import fused_pass
+from psurf_core.binning import _spans, screen_rects
 from psurf_core.kernels.spans import hull_spans
 from psurf_core.scene_io import load_scene
 from psurf_core.techniques import get_technique
-from psurf_core.techniques.base import PassContext
 from psurf_core.techniques.bounds import box_span, hit_boxes
-from psurf_core.trace import trace
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def _keys(tech, prims, rays, ctx, ray, prim):
-    """Sorted keys of the hits among pairs ``(ray, prim)``, all and those with a value."""
-    h = tech.intersect(prims, rays, ray, prim, ctx)
-    val = np.any(tech.evaluate(h, prims, None, rays, ctx) != 0.0, axis=1)
-    key = h.ray.astype(np.int64) * (1 << 32) + h.prim
-    return np.sort(key), np.sort(key[val])
-
-
-def _binned(tech, prims, scene, rays, ctx):
-    every, counted = [], []
-    for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, 1 << 16,
-                                     prims.hull, prims.clip_box(scene)):
-        a, b = _keys(tech, prims, rays, ctx, ray, prim)
-        every.append(a)
-        counted.append(b)
-    return np.sort(np.concatenate(every)), np.sort(np.concatenate(counted))
-
-
-def _walked(tech, prims, paths, rays, ctx):
-    every, counted = [], []
-    for hits, val, _ in fused_pass(tech, prims, paths, rays, ctx):
-        key = hits.ray.astype(np.int64) * (1 << 32) + hits.prim
-        every.append(key)
-        counted.append(key[np.any(val != 0.0, axis=1)])
-    return np.sort(np.concatenate(every)), np.sort(np.concatenate(counted))
 
 
 @pytest.mark.parametrize("scene_name, kmin, kmax", [("study_medium", 2, 3), ("area", 2, 3),
                                                     ("area_occluder", 2, 3)])
 @pytest.mark.parametrize("name", ["planes", "plane-ut-short", "plane-ut", "plane-vt-short"])
 def test_cut_hull_keeps_every_hit_with_a_value(scene_name, kmin, kmax, name):
-    scene = load_scene(ROOT / "scenes" / f"{scene_name}.toml").with_scatter(kmin, kmax)
-    scene = replace(scene, camera=replace(scene.camera, width=32, height=24))
-    blockers = blockers_of(scene)
-    rng = np.random.default_rng(11)
-    rays = camera_rays(scene, 1, rng, blockers=blockers)
-    paths = trace(scene, 300, rng, blockers=blockers)
+    scene, rays, paths, ctx = small_pass(
+        load_scene(ROOT / "scenes" / f"{scene_name}.toml").with_scatter(kmin, kmax), 11, 300)
     tech = get_technique(name)
-    ctx = PassContext(scene, blockers, 0.0, 0, 1 << 16)
     prims = tech.create(paths, ctx)
-    # brute force: every ray that sees the medium with every primitive
-    seen = np.flatnonzero(rays.s_max > rays.s_min)
-    ray = np.repeat(seen, len(prims))
-    prim = np.tile(np.arange(len(prims)), seen.size)
-    every, counted = _keys(tech, prims, rays, ctx, ray, prim)
+    every, counted = brute_hits(tech, prims, rays, ctx)
     assert counted.size > 100
     blocked = np.setdiff1d(every, counted)
-    for b_every, b_counted in (_binned(tech, prims, scene, rays, ctx),
-                               _walked(tech, prims, paths, rays, ctx)):
+    for b_every, b_counted, _ in (binned_hits(tech, prims, scene, rays, ctx, prims.hull,
+                                              prims.clip_box(scene)),
+                                  walked_hits(tech, prims, paths, rays, ctx)):
         np.testing.assert_array_equal(b_counted, counted)
         # the cut bites: of the hits without a value, the spans leave at most half
         if name != "plane-vt-short" and scene_name == "study_medium":
