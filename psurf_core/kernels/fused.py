@@ -128,11 +128,28 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
         me = next(j for j, m in enumerate(mis.full_group) if m is tech)
         w, key = weight_of(mis.full_group, me, mis.weighting)
         shares = member_params(mis.full_group, mis.share_array())
-    run = _Run(tech, fam, walker(fam, w, key), prims, paths, rays, ctx, blk, cs, rt, rid,
-               shares, weighted=w is not None, emit=emit or (w is None and mis is not None))
+    # One origin for the walk where the family caches solver vectors for rays from the
+    # camera (its geometry has ``eye``: ``surface_common.cached_solve``): see walk.py. Other
+    # families read each ray's own (given one origin, ``ss-sphere``'s walk took 1.15x the
+    # CPU time, cones and cylinders the same; docs/study.md).
+    origin = common_origin(rays) if "eye" in fam.geometry._fields else None
+    run = _Run(tech, fam, walker(fam, w, key, origin is not None), prims, paths, rays, ctx,
+               blk, cs, rt, rid, origin, shares, weighted=w is not None,
+               emit=emit or (w is None and mis is not None))
     run.stats = stats
     run.add_emitted = add_emitted and (w is not None or mis is None)
     return _kept(run.chunks(out))
+
+
+def common_origin(rays):
+    """(3,) float: the origin every ray starts at (``Rays.origin``, a pinhole camera's
+    position, checked against the rays' own), or None when they differ (each walker then
+    reads every ray's own: :func:`.walk.walker`'s ``one_origin``)."""
+    if rays.origin is None:
+        return None
+    origin = np.ascontiguousarray(rays.origin, dtype=float)
+    same = memo(rays, "one origin", lambda: bool(np.all(rays.o == origin)))
+    return origin if same else None
 
 
 def _kept(it):
@@ -145,8 +162,8 @@ def _kept(it):
 class _Run:
     """One technique's walk over one batch of primitives (see :func:`fused_pass`)."""
 
-    def __init__(self, tech, fam, walk, prims, paths, rays, ctx, blk, cs, rt, rid, shares,
-                 weighted, emit):
+    def __init__(self, tech, fam, walk, prims, paths, rays, ctx, blk, cs, rt, rid, origin,
+                 shares, weighted, emit):
         self.tech, self.fam, self.walk = tech, fam, walk
         self.prims, self.paths, self.rays, self.ctx = prims, paths, rays, ctx
         self.cs, self.rid, self.emit = cs, rid, emit
@@ -155,8 +172,9 @@ class _Run:
         c = np.ascontiguousarray
         lights = _photon_lights(paths, ctx.scene)
         # The walker's constant arguments after the span range (its signature, in order).
-        self.const = (int(ctx.scene.camera.width), cs, flat(rt), rid, flat(prims.data),
-                      bool(tech.short), medium_row(ctx.scene.medium), blk,
+        origin = np.zeros(3) if origin is None else origin  # (unread: rays' own origins)
+        self.const = (int(ctx.scene.camera.width), cs, flat(rt), rid, origin,
+                      flat(prims.data), bool(tech.short), medium_row(ctx.scene.medium), blk,
                       c(prims.photon, np.int64), c(prims.K, np.int64), c(paths.x, float),
                       c(paths.w, float), c(paths.t, float), lights, shares, emit)
 

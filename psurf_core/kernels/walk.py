@@ -48,21 +48,22 @@ def _unweighted(row, params, shares):
     return 1.0
 
 
-def walker(fam, weight=None, key=None):
+def walker(fam, weight=None, key=None, one_origin=True):
     """The compiled walker of family ``fam`` (a technique's ``compiled`` declaration,
     :class:`~psurf_core.techniques.base.Compiled`) with the MIS weight ``weight`` (a
     :class:`.mis.Weight` from :func:`.mis.weight_of`; None: no MIS). ``key``
     names ``weight`` (equal keys: the same function), so each walker is built once per
-    process."""
-    k = (id(fam), key)
+    process. ``one_origin``: every ray starts at the walker's ``origin`` argument (a pinhole
+    camera's rays, ``Rays.origin``); else each ray's own origin is read."""
+    k = (id(fam), key, one_origin)
     if k not in _WALKERS:
         # ``fam`` is kept with its walker: while it lives, no other record can take its id
         # (a record built on the fly, then freed, would otherwise hand its id and walker on).
-        _WALKERS[k] = (fam, _build(fam, weight))
+        _WALKERS[k] = (fam, _build(fam, weight, one_origin))
     return _WALKERS[k][1]
 
 
-def _build(fam, weight):
+def _build(fam, weight, one_origin):
     Geometry, n_roots = fam.geometry, fam.n_roots
     roots, accept, visibility = fam.roots, fam.accept, fam.visibility
     contribution, reconstruct = fam.contribution, fam.reconstruct
@@ -70,7 +71,8 @@ def _build(fam, weight):
     shares_of, w_of = weight if mis else (_no_shares, _unweighted)
 
     @kernel(nogil=True)
-    def walk(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, geom, short, medium,
+    def walk(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, origin, geom, short,
+             medium,
              blockers, photon, kk, px, pw, pt, lights, params, emit,
              o_ray, o_prim, o_s, o_hit, o_val, o_w, o_st, n, lim,
              a_ray, a_val, na):  # pragma: no cover - compiled
@@ -80,6 +82,13 @@ def _build(fam, weight):
         n_hits = 0
         # Passed to the shadow test at every hit: without its reference count (.views).
         shadow = borrowed(blockers)
+        # With one origin for every ray, the origin the twins see is the same value at every
+        # pair: LLVM then moves what depends on it alone out of the loop (a plane's check
+        # that the ray starts where Create computed its solver vectors, ``cached_solve``)
+        # and computes the solve that ``roots`` and ``accept`` share once (read from each
+        # ray, the check's branch stays at every pair and the solve is done twice: the
+        # ``planes`` walker took 1.06-1.11x the CPU time, docs/study.md).
+        o0 = (origin[0], origin[1], origin[2])
         i = i0
         while i < i1:
             # One primitive's spans are consecutive (one per image row): its geometry and,
@@ -100,16 +109,17 @@ def _build(fam, weight):
                 base_px = s_row[i_span] * width
                 for k in range(cs[base_px + s_c0[i_span]], cs[base_px + s_c1[i_span]]):
                     ray = load(rt, k, RayRow)
-                    rts = roots(G, ray.o, ray.psi)
+                    o = o0 if one_origin else ray.o
+                    rts = roots(G, o, ray.psi)
                     for j in range(n_roots):
                         s = rts[j]
                         if not (s > ray.s_min and s < ray.s_max):  # NaN: no root
                             continue
-                        ok, hit = accept(G, ray.o, ray.psi, s, short)
+                        ok, hit = accept(G, o, ray.psi, s, short)
                         if not ok:
                             continue
                         n_hits += 1
-                        x0 = madd(ray.o, s, ray.psi)
+                        x0 = madd(o, s, ray.psi)
                         st = visibility(G, x0, hit, medium, shadow)
                         if st[0] == BLOCKED or st[1] == BLOCKED or st[2] == BLOCKED:
                             scal = 0.0
@@ -119,7 +129,7 @@ def _build(fam, weight):
                         # A blocked hit added to the image adds nothing: its weight is needed
                         # only where the hit itself is kept (emit).
                         if mis and (emit or scal != 0.0):
-                            row = at_hit(base, ray.o, ray.psi, s)
+                            row = at_hit(base, o, ray.psi, s)
                             w = w_of(reconstruct(row, G, hit), params, shares)
                         if emit:
                             if n >= lim:  # cannot happen: lim is the candidates x roots bound
