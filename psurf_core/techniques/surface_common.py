@@ -330,10 +330,12 @@ def cached_solve(x, u, v, G, o, psi):
 @twin(cached_solve)
 def _cached_solve(x, u, v, G, o, psi):
     if o[0] == G.eye[0] and o[1] == G.eye[1] and o[2] == G.eye[2]:
-        m0, m1, m2, sdet = G.m0, G.m1, G.m2, G.sdet  # the camera's: computed by Create
+        m1, m2, sdet = G.m1, G.m2, G.sdet  # the camera's: computed by Create
     else:
-        m0, m1, m2, sdet = plane_solver(x, u, v, o)
-    det = dot(m0, psi)
+        _, m1, m2, sdet = plane_solver(x, u, v, o)
+    # m0 = v x u does not depend on the origin: read, not chosen, so that the walker's two
+    # calls (roots, accept) share one division to LLVM.
+    det = dot(G.m0, psi)
     inv = 1.0 / det
     return det, dot(m1, psi) * inv, dot(m2, psi) * inv, sdet * inv
 
