@@ -36,20 +36,12 @@ from .mis import member_params, weight_of
 from .rays import ray_table
 from .shadow import shadow_args
 from .spans import hull_spans
-from .threads import on_threads, thread_count
+from .threads import PIECES_PER_THREAD, on_threads, thread_count
 from .walk import accumulate, walker
 
 #: Candidate pairs from which a chunk is shared among threads (below, handing the work out
 #: costs more than it saves: ~20k pairs are ~2 ms of work).
 THREADED_MIN_PAIRS = 20_000
-
-#: Pieces per thread a threaded chunk is cut into (equal candidate pairs each; twice
-#: ``threads.PIECES_PER_THREAD``). Pieces of equal pairs are not of equal cost, and the thread
-#: that finishes first waits for the other's last piece: with 4 a thread, a profile of
-#: ``planes``' passes on ``area.toml`` had the main thread waiting 2.4 ms of a 24 ms pass.
-#: Smaller pieces shorten that wait; handing one out costs ~30 us. Which thread runs which
-#: piece changes no result (the pieces' rows are put back in span order).
-WALK_PIECES_PER_THREAD = 8
 
 _BUFFERS = HitBuffers()
 
@@ -223,7 +215,7 @@ class _Run:
             cut = [a, b]
         else:
             cum = np.cumsum(cand[a:b])
-            k = threads * WALK_PIECES_PER_THREAD
+            k = threads * PIECES_PER_THREAD
             cut = np.unique(np.concatenate(
                 [[a], a + np.searchsorted(cum, cum[-1] * np.arange(1, k) / k), [b]])).tolist()
         caps = [int(cand[i:j].sum()) * self.fam.n_roots for i, j in zip(cut[:-1], cut[1:],
