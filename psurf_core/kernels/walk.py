@@ -72,8 +72,7 @@ def _build(fam, weight, one_origin):
 
     @kernel(nogil=True)
     def walk(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, origin, geom, short,
-             medium,
-             blockers, photon, kk, px, pw, pt, lights, params, emit,
+             medium, blockers, photon, kk, px, pw, pt, lights, params, emit,
              o_ray, o_prim, o_s, o_hit, o_val, o_w, o_st, n, lim,
              a_ray, a_val, na):  # pragma: no cover - compiled
         """Hits of spans ``i0 .. i1 - 1`` (module docstring); full rows from ``n`` (up to
@@ -86,8 +85,9 @@ def _build(fam, weight, one_origin):
         # pair: LLVM then moves what depends on it alone out of the loop (a plane's check
         # that the ray starts where Create computed its solver vectors, ``cached_solve``)
         # and computes the solve that ``roots`` and ``accept`` share once (read from each
-        # ray, the check's branch stays at every pair and the solve is done twice: the
-        # ``planes`` walker took 1.06-1.11x the CPU time, docs/study.md).
+        # ray, the check's branch stays at every pair and the solve is done twice: with
+        # ``cached_solve``'s ``m0`` read for any origin, the ``planes`` walker took 1.15x the
+        # CPU time, docs/study.md, "One origin for the plane walkers").
         o0 = (origin[0], origin[1], origin[2])
         i = i0
         while i < i1:
