@@ -39,30 +39,33 @@ def _sorted(parts) -> np.ndarray:
     return np.sort(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
 
 
-def pair_hits(tech, prims, rays, ctx, ray, prim):
+def pair_hits(tech, prims, rays, ctx, ray, prim, valued=True):
     """Sorted keys of the hits among the pairs ``(ray, prim)`` (numpy Intersect), and of those
-    of them with a value (numpy Evaluate; a hull may be cut to where hits count)."""
+    of them with a value (numpy Evaluate; a hull may be cut to where hits count; without
+    ``valued``, not evaluated: an empty array)."""
     h = tech.intersect(prims, rays, ray, prim, ctx)
     key = keys_of(h.ray, h.prim)
+    if not valued:
+        return np.sort(key), np.zeros(0, np.int64)
     val = np.any(tech.evaluate(h, prims, None, rays, ctx) != 0.0, axis=1)
     return np.sort(key), np.sort(key[val])
 
 
-def brute_hits(tech, prims, rays, ctx):
+def brute_hits(tech, prims, rays, ctx, valued=True):
     """:func:`pair_hits` of every ray that sees the medium with every primitive."""
     seen = np.flatnonzero(rays.s_max > rays.s_min)
     return pair_hits(tech, prims, rays, ctx, np.repeat(seen, len(prims)),
-                     np.tile(np.arange(len(prims)), seen.size))
+                     np.tile(np.arange(len(prims)), seen.size), valued)
 
 
-def binned_hits(tech, prims, scene, rays, ctx, hull=None, box=None):
+def binned_hits(tech, prims, scene, rays, ctx, hull=None, box=None, valued=True):
     """``(every, counted, pairs)``: :func:`pair_hits` over binning's candidate pairs
     (``candidate_pairs`` with ``hull`` and clip ``box``; both None: the screen rectangles)
     and the number of pairs tried."""
     every, counted, pairs = [], [], 0
     for ray, prim in candidate_pairs(scene.camera, rays, prims.lo, prims.hi, ctx.max_pairs,
                                      hull, box):
-        a, b = pair_hits(tech, prims, rays, ctx, ray, prim)
+        a, b = pair_hits(tech, prims, rays, ctx, ray, prim, valued)
         every.append(a)
         counted.append(b)
         pairs += ray.size

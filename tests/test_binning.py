@@ -80,8 +80,9 @@ def test_random_parallelograms_conservative():
                        hull=wedge_hull(scene, x2, w2, w1, T2, T1))
     ctx = PassContext(scene, blockers, 0.0, 0, 1 << 15)
     box = (scene.medium.bounds_min, scene.medium.bounds_max)
-    rect = binned_hits(tech, prims, scene, rays, ctx, None, box)[0]
-    tight = binned_hits(tech, prims, scene, rays, ctx, prims.hull, box)[0]
+    rect = binned_hits(tech, prims, scene, rays, ctx, None, box, valued=False)[0]
+    tight = binned_hits(tech, prims, scene, rays, ctx, prims.hull, box,
+                        valued=False)[0]
     assert rect.size > 100
     np.testing.assert_array_equal(tight, rect)
 

@@ -30,7 +30,7 @@ def test_footprint_keeps_every_hit_and_cuts(scene_name, name):
     tech = get_technique(name)
     prims = tech.create(paths, ctx)
     assert (prims.cloud if name.startswith("ss-cone") else prims.hull) is not None
-    every, _ = brute_hits(tech, prims, rays, ctx)
+    every, _ = brute_hits(tech, prims, rays, ctx, valued=False)
     assert every.size > 10  # (ss-plane-uv on mesh_light: small triangles, ~15 hits)
     walked, _, pairs = walked_hits(tech, prims, paths, rays, ctx)
     np.testing.assert_array_equal(walked, every)
@@ -40,6 +40,6 @@ def test_footprint_keeps_every_hit_and_cuts(scene_name, name):
     assert pairs < 0.9 * rect, (pairs, rect)
     if prims.hull is not None:
         binned, _, b_pairs = binned_hits(tech, prims, scene, rays, ctx, prims.hull,
-                                         prims.clip_box(scene))
+                                         prims.clip_box(scene), valued=False)
         np.testing.assert_array_equal(binned, every)
         assert b_pairs < 0.9 * rect, (b_pairs, rect)

@@ -120,11 +120,8 @@ def fused_pass(tech, prims, paths, rays, ctx, mis: MisSet | None = None, emit: b
         me = next(j for j, m in enumerate(mis.full_group) if m is tech)
         w, key = weight_of(mis.full_group, me, mis.weighting)
         shares = member_params(mis.full_group, mis.share_array())
-    # One origin for the walk where the family caches solver vectors for rays from the
-    # camera (its geometry has ``eye``: ``surface_common.cached_solve``): see walk.py. Other
-    # families read each ray's own (given one origin, ``ss-sphere``'s walk took 1.15x the
-    # CPU time, cones and cylinders the same; docs/study.md).
-    origin = common_origin(rays) if "eye" in fam.geometry._fields else None
+    # One origin for the walk where the family gains from it (``Compiled.one_origin``).
+    origin = common_origin(rays) if fam.one_origin else None
     run = _Run(tech, fam, walker(fam, w, key, origin is not None), prims, paths, rays, ctx,
                blk, cs, rt, rid, origin, shares, weighted=w is not None,
                emit=emit or (w is None and mis is not None))

@@ -51,6 +51,12 @@ class Compiled:
         member shares (its Jacobian and constants only; compiled twin); where every member
         of an MIS set has one and is short, the compiled weights use these
         (:mod:`psurf_core.kernels.mis`). None: the set weighs densities.
+    one_origin : bool
+        The twins compute faster for rays from one origin (a plane's solve cached for the
+        camera, ``surface_common.cached_solve``): the walker then reads the rays' common
+        origin, a value the same at every pair, instead of each ray's
+        (:func:`psurf_core.kernels.walk.walker`; given one, other families gained nothing or
+        lost, ``ss-sphere`` 1.15x).
     """
 
     geometry: type
@@ -64,6 +70,7 @@ class Compiled:
     reconstruct: object = None
     density: object = None
     short_ratio: object = None
+    one_origin: bool = False
 
 
 @dataclass

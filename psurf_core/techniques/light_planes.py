@@ -352,7 +352,7 @@ def _short_ratio_vt(rec):
 
 _COMPILED = {
     which: Compiled(LPlaneGeometry, LPlaneHit, 1, roots, accept, visibility, contribution,
-                    segments, rec_fn, dens_fn, ratio_fn)
+                    segments, rec_fn, dens_fn, ratio_fn, one_origin=True)
     for which, rec_fn, dens_fn, ratio_fn in (
         ("ut", reconstruct_ut, density_ut, short_ratio_ut),
         ("vt", reconstruct_vt, density_vt, short_ratio_vt))

@@ -216,7 +216,7 @@ class PhotonPlane(Technique):
     family = "planes"
     min_k = 2
     compiled = Compiled(PlaneGeometry, PlaneHit, 1, roots, accept, visibility, contribution,
-                        segments, reconstruct, density, short_ratio)
+                        segments, reconstruct, density, short_ratio, one_origin=True)
 
     names = ("plane-t1t2", "plane-t1t2-short")
     grid = staticmethod(surface_grid)

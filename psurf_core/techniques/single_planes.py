@@ -244,7 +244,7 @@ def _density_vt(rec, short):
 
 _COMPILED = {
     which: Compiled(SPlaneGeometry, SPlaneHit, 1, roots, accept, visibility, contribution,
-                    segments, rec_fn, dens_fn)
+                    segments, rec_fn, dens_fn, one_origin=True)
     for which, rec_fn, dens_fn in (("uv", reconstruct_uv, density_uv),
                                    ("ut", reconstruct_ut, density_ut),
                                    ("vt", reconstruct_vt, density_vt))
