@@ -56,7 +56,7 @@ class Compiled:
         camera, ``surface_common.cached_solve``): the walker then reads the rays' common
         origin, a value the same at every pair, instead of each ray's
         (:func:`psurf_core.kernels.walk.walker`; given one, other families gained nothing or
-        lost, ``ss-sphere`` 1.15x).
+        lost, ``ss-sphere`` 1.15x: docs/study.md).
     """
 
     geometry: type
