@@ -119,10 +119,21 @@ def stage_pass(scene, spec: str, photons: int, seed: int = 0) -> dict:
     }
 
 
+def warm_up(scene, spec: str, photons: int) -> None:
+    """One untimed :func:`stage_pass` of ``photons`` (seed 1000): the kernels load and the
+    buffers a pass reuses (the walkers' ``psurf_core.kernels.buffers``, the tracer's
+    ``psurf_core.trace_buffers``) reach the size of the timed passes. (After a 256-photon
+    warm-up the first timed pass grew them: in a fresh process its ``planes`` hit cost 183
+    CPU ns against 50-54 after, and the first round of ``benchmarks/cost_ratio.py`` read a
+    ratio of 0.49 against 1.56-1.65, 2026-12-07.)"""
+    stage_pass(scene, spec, photons, seed=1000)
+
+
 def steady(scene, spec: str, photons: int, reps: int) -> dict:
-    """:func:`stage_pass` ``reps`` times after a warm-up pass (compiled kernels loaded,
-    buffers allocated): the median of each headline rate, and every pass's."""
-    stage_pass(scene, spec, min(photons, 256))
+    """:func:`stage_pass` ``reps`` times after a warm-up pass of the same size (compiled
+    kernels loaded, the pass's buffers allocated at their full size: :func:`warm_up`): the
+    median of each headline rate, and every pass's."""
+    warm_up(scene, spec, photons)
     runs = [stage_pass(scene, spec, photons, seed=r) for r in range(reps)]
     keys = ("hits_per_second", "cpu_ns_per_hit", "photon_vertices_per_second")
     out = {k: float(np.median([r[k] for r in runs])) for k in keys}
@@ -138,9 +149,9 @@ def paired_cost_ratio(scene, base: str, spec: str, photons: int, rounds: int) ->
     ratio of that round's two ``cpu_ns_per_hit``; the median over the rounds. (Each estimator's
     :func:`steady` median comes from its own stretch of the run, tens of seconds apart, in
     whatever phase a shared machine is in then; a round's pair shares one.) A warm-up pass
-    of each comes first, as in :func:`steady`."""
-    stage_pass(scene, base, min(photons, 256))
-    stage_pass(scene, spec, min(photons, 256))
+    of each comes first (:func:`warm_up`)."""
+    warm_up(scene, base, photons)
+    warm_up(scene, spec, photons)
     ratios, each = [], {base: [], spec: []}
     for r in range(rounds):
         order = (base, spec) if r % 2 == 0 else (spec, base)
