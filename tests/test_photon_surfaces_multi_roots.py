@@ -150,3 +150,66 @@ def test_degenerate_configurations_stay_finite():
                 rec = tech.reconstruct(hits, prims, paths, rays, ctx)
                 q = member_densities(rec, group, ctx)
                 assert np.all(np.isfinite(weights_from_densities(q, "balance")))
+
+
+# ------------------------------------------------------------------------------ on-surface reads
+def test_cone_slant_reads_the_slant_length_off_the_axis():
+    """``cones.slant`` of points on a double cone: ``+|v|`` on the photon's nappe, ``-|v|``
+    on the mirror one, to 1e-11 relative for every ``c1`` (the axis read ``h / c1`` from
+    ``|c1| >= C1_DIRECT``, the norm below it, and ``c1 = 0``), and its compiled twin
+    equal to it."""
+    from numba import njit
+
+    from psurf_core.techniques import cones
+
+    rng = np.random.default_rng(48)
+    n = 4000
+    w2 = unit(rng.normal(size=(n, 3)))
+    c1 = np.concatenate([rng.uniform(-1, 1, n - 400), rng.uniform(-0.02, 0.02, 300),
+                         np.zeros(50), np.full(50, cones.C1_DIRECT)])
+    s1 = np.sqrt(1.0 - c1 * c1)
+    e = rng.normal(size=(n, 3))
+    e_r = unit(e - (e * w2).sum(1)[:, None] * w2)
+    t = rng.uniform(0.01, 3.0, n)
+    side = rng.choice([-1.0, 1.0], n)
+    v = (side * t)[:, None] * (c1[:, None] * w2 + s1[:, None] * e_r)
+    got = cones.slant(v, w2, c1)
+    # c1 = 0: both nappes are one plane, where the side is 0 and the slant is -|v|.
+    want = np.where(c1 == 0.0, -t, side * t)
+    np.testing.assert_allclose(got, want, rtol=1e-11)
+    assert np.any(np.abs(c1) < cones.C1_DIRECT) and np.any(np.abs(c1) >= cones.C1_DIRECT)
+    twin = njit(lambda a, b, c: cones.slant(a, b, c))
+    compiled = np.array([twin(tuple(v[i]), tuple(w2[i]), c1[i]) for i in range(n)])
+    np.testing.assert_array_equal(compiled, got)
+
+
+def test_cylinder_radial_unit_on_its_roots():
+    """``cylinders.radial_unit`` at the roots ``cylinders.roots`` finds: unit length to 1e-12
+    (``|vp| = r`` at a root), equal to ``vp / |vp|``, and zero for a zero radius."""
+    from psurf_core.records import table
+    from psurf_core.techniques import cylinders
+    from psurf_core.techniques.cylinders import CylinderGeometry
+
+    rng = np.random.default_rng(49)
+    n = 3000
+    w2 = unit(rng.normal(size=(n, 3)))
+    x2 = rng.uniform(-1, 1, (n, 3))
+    T1, s1 = rng.uniform(0.05, 2.0, n), rng.uniform(0.01, 1.0, n)
+    one = np.ones(n)
+    G = table(CylinderGeometry, x2=x2, w2=w2, c1=np.sqrt(1 - s1 * s1), s1=s1, T1=T1, T2=T1,
+              own=one, beta=np.ones((n, 3)), clear=one, line=one)
+    o = x2 + rng.normal(scale=2.0, size=(n, 3))
+    psi = unit(x2 + rng.normal(scale=0.5, size=(n, 3)) - o)
+    r = cylinders.roots(G, o, psi)
+    checked = 0
+    for s in r:
+        ok = np.isfinite(s)
+        x0 = o[ok] + s[ok, None] * psi[ok]
+        v = x0 - x2[ok]
+        vp = v - (v * w2[ok]).sum(1)[:, None] * w2[ok]
+        e_r = cylinders.radial_unit(vp, T1[ok] * s1[ok])
+        np.testing.assert_allclose(np.linalg.norm(e_r, axis=1), 1.0, rtol=1e-12)
+        np.testing.assert_allclose(e_r, vp / np.linalg.norm(vp, axis=1)[:, None], atol=1e-12)
+        checked += ok.sum()
+    assert checked > n  # most rays pass through the cylinders
+    assert np.all(cylinders.radial_unit(np.ones((2, 3)), np.zeros(2)) == 0.0)

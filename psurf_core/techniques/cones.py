@@ -25,7 +25,7 @@ import numpy as np
 
 from ..kernels.jit import twin
 from ..kernels.shadow import CLEAR, status
-from ..kernels.vec import madd, scale, sub
+from ..kernels.vec import madd, norm, scale, sub
 from ..path_record import with_t1, with_w1
 from ..records import Vec, table
 from . import grids
@@ -43,7 +43,6 @@ from .surface_common import (
     radial,
     ring,
     select_photons,
-    unit,
 )
 
 
@@ -99,22 +98,55 @@ def _roots(G, o, psi):
     return r0 + sc, r1 + sc
 
 
+#: ``|c1|`` from which :func:`slant` reads a root's slant length off the axis, ``t1 = h / c1``
+#: (no square root): a root leaves the cone equation's residual at rounding level of
+#: ``|v|^2``, which this divides into an error of ~``eps / c1^2`` relative, 2e-12 here.
+C1_DIRECT = 1e-2
+
+
+def slant(v, w2, c1):
+    """(H,) the signed slant length of the points ``x1 + v`` ((H, 3)) of the double cone
+    ``(v . w2)^2 = c1^2 |v|^2``: ``|v|`` on the photon's nappe (``sign(v . w2) = sign(c1)``),
+    ``-|v|`` on the mirror one. On the cone, ``v . w2 = c1 |v|``: read as ``h / c1`` where
+    ``|c1| >= C1_DIRECT``, which spares a pair's square root (the cone walker's pair waits
+    on it: 0.96x its CPU, docs/study.md, "Square roots off the cones' and cylinders'
+    chains"), else as ``|v|`` signed by the side."""
+    h = dot(v, w2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        direct = h / c1
+    far = np.linalg.norm(v, axis=1)
+    return np.where(np.abs(c1) >= C1_DIRECT, direct, np.where(h * c1 > 0.0, far, -far))
+
+
+@twin(slant)
+def _slant(v, w2, c1):
+    h = dot(v, w2)
+    if abs(c1) >= C1_DIRECT:
+        return h / c1
+    far = norm(v)
+    return far if h * c1 > 0.0 else -far
+
+
 def accept(G, o, psi, s, short):
     """Which roots are hits (the photon's nappe; ``t1 < T1`` if short; not grazing), and
     their records (:class:`ConeHit`)."""
-    w1, t1 = unit(o + s[:, None] * psi - G.x1)
-    # The squared equation also holds on the mirror nappe: keep the photon's side.
-    ok = (t1 > 0) & (dot(w1, G.w2) * G.c1 > 0)
+    v = o + s[:, None] * psi - G.x1
+    # The squared equation also holds on the mirror nappe (t1 < 0): keep the photon's side.
+    t1 = slant(v, G.w2, G.c1)
+    ok = t1 > 0
     if short:
         ok &= t1 < G.T1
+    w1 = v * (1.0 / np.where(ok, t1, 1.0))[:, None]  # the twin's operations
     ndp = np.abs(dot(scaled_normal(G.w2, w1, t1), psi))
     return ok & (ndp > NDP_MIN), table(ConeHit, t1=t1, w1=w1, n_dot_psi=ndp)
 
 
 @twin(accept)
 def _accept(G, o, psi, s, short):
-    w1, t1 = unit(sub(madd(o, s, psi), G.x1))
-    ok = t1 > 0.0 and dot(w1, G.w2) * G.c1 > 0.0 and (not short or t1 < G.T1)
+    v = sub(madd(o, s, psi), G.x1)
+    t1 = slant(v, G.w2, G.c1)
+    ok = t1 > 0.0 and (not short or t1 < G.T1)
+    w1 = scale(1.0 / t1, v)  # meaningless where not ok (t1 <= 0): unused there
     ndp = abs(dot(scaled_normal(G.w2, w1, t1), psi))
     return ok and ndp > NDP_MIN, ConeHit(t1, w1, ndp)
 
