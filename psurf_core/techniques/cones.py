@@ -108,9 +108,9 @@ def slant(v, w2, c1):
     """(H,) the signed slant length of the points ``x1 + v`` ((H, 3)) of the double cone
     ``(v . w2)^2 = c1^2 |v|^2``: ``|v|`` on the photon's nappe (``sign(v . w2) = sign(c1)``),
     ``-|v|`` on the mirror one. On the cone, ``v . w2 = c1 |v|``: read as ``h / c1`` where
-    ``|c1| >= C1_DIRECT``, which spares a pair's square root (the cone walker's pair waits
-    on it: 0.96x its CPU, docs/study.md, "Square roots off the cones' and cylinders'
-    chains"), else as ``|v|`` signed by the side."""
+    ``|c1| >= C1_DIRECT``, which spares a pair's square root (the pair's serial chain waits
+    on it: the cone walker's CPU 0.985x without it, docs/study.md, "Square roots off the
+    cones' and cylinders' chains"), else as ``|v|`` signed by the side."""
     h = dot(v, w2)
     with np.errstate(divide="ignore", invalid="ignore"):
         direct = h / c1

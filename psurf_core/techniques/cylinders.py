@@ -86,7 +86,7 @@ def radial_unit(vp, r):
     """(H, 3) the unit radial ``e_r`` of a point on the cylinder from its offset ``vp``
     (perpendicular to the axis) and the radius ``r = T1 s1`` ((H,)): ``vp / r``, since a
     root of :func:`roots` puts the point at ``|vp| = r`` to rounding (``|vp|``'s square root
-    and divisions sat on the pair's serial chain: 0.97x the cylinder walker's CPU without
+    and divisions sat on the pair's serial chain: 0.976x the cylinder walker's CPU without
     them, docs/study.md, "Square roots off the cones' and cylinders' chains"). Zero where
     ``r = 0`` (``s1 = 0``: a line, met with probability zero)."""
     return vp * (1.0 / np.where(r > 0.0, r, np.inf))[:, None]  # the twin's operations
