@@ -103,3 +103,63 @@ def test_spans_with_a_box_per_primitive_are_the_numpy_ones(inside):
     whole = pixels(shared)
     cut = pixels(got)
     assert cut <= whole and len(cut) < 0.8 * len(whole)
+
+
+def test_tube_holds_box_leaves_no_surface_point_in_the_box():
+    """``tube_holds_box``: on tubes it says hold the (grown) box, no point of a dense sampling
+    of the tube's surface lies in the medium box; it holds for some tubes and not for others,
+    and not where a corner lies farther from the axis than the radius."""
+    from psurf_core.techniques.bounds import tube_holds_box
+
+    scene = load_scene(ROOT / "scenes" / "area.toml")
+    lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
+    rng = np.random.default_rng(12)
+    m = 600
+    x = rng.uniform(-1.5, 1.5, (m, 3))
+    w = rng.normal(size=(m, 3))
+    w /= np.linalg.norm(w, axis=1)[:, None]
+    r = rng.uniform(0.2, 4.0, m)
+    holds = tube_holds_box(scene, x, w, r)
+    assert 0.1 < holds.mean() < 0.9, holds.mean()
+    # The surface x + h w + r (cos a e1 + sin a e2), sampled densely over the box's reach.
+    e1 = np.cross(w, [0.3, 0.5, 0.81])
+    e1 /= np.linalg.norm(e1, axis=1)[:, None]
+    e2 = np.cross(w, e1)
+    h = np.linspace(-6.0, 6.0, 241)
+    a = np.linspace(0.0, 2.0 * np.pi, 181)
+    ring = np.cos(a)[:, None, None] * e1[None] + np.sin(a)[:, None, None] * e2[None]
+    inside_any = np.zeros(m, bool)
+    for hk in h:
+        p = x[None] + hk * w[None] + r[None, :, None] * ring  # (angles, m, 3)
+        inside_any |= np.all((p > lo) & (p < hi), axis=2).any(axis=0)
+    assert not np.any(holds & inside_any)
+    assert np.any(~holds & inside_any)  # the sampling finds the surface in the box elsewhere
+    corners = np.array([[(lo, hi)[(c >> k) & 1][k] for k in range(3)] for c in range(8)])
+    d = corners[None] - x[:, None]
+    dist = np.linalg.norm(d - np.einsum("mcj,mj->mc", d, w)[..., None] * w[:, None], axis=2)
+    assert not np.any(holds & (dist.max(axis=1) > r))
+
+
+@pytest.mark.parametrize("scene_name", ["area", "study_medium"])
+@pytest.mark.parametrize("name", ["cylinder", "cylinder-short"])
+def test_cylinders_that_hold_the_box_have_no_candidates_and_no_hits(scene_name, name):
+    """A cylinder whose tube holds the box gets empty bounds (no candidate pair); brute force
+    finds no hit on it, and the walk and binning lose no hit."""
+    from psurf_core.techniques.bounds import tube_holds_box
+
+    scene, rays, paths, ctx = small_pass(
+        load_scene(ROOT / "scenes" / f"{scene_name}.toml").with_scatter(2, 3), 13, 300)
+    tech = get_technique(name)
+    prims = tech.create(paths, ctx)
+    G = prims.data
+    held = tube_holds_box(scene, G.x2, G.w2, G.T1 * G.s1)
+    assert held.sum() >= 5, held.sum()
+    assert np.all(prims.lo[held] > prims.hi[held])
+    every, counted = brute_hits(tech, prims, rays, ctx)
+    assert every.size > 100
+    assert not np.any(np.isin(every % (1 << 32), np.flatnonzero(held)))
+    b_every, b_counted, _ = binned_hits(tech, prims, scene, rays, ctx)
+    w_every, w_counted, _ = walked_hits(tech, prims, paths, rays, ctx)
+    np.testing.assert_array_equal(b_every, every)
+    np.testing.assert_array_equal(w_every, every)
+    np.testing.assert_array_equal(w_counted, counted)
