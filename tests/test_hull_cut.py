@@ -140,19 +140,46 @@ def test_tube_holds_box_leaves_no_surface_point_in_the_box():
     assert not np.any(holds & (dist.max(axis=1) > r))
 
 
-@pytest.mark.parametrize("scene_name", ["area", "study_medium"])
-@pytest.mark.parametrize("name", ["cylinder", "cylinder-short"])
-def test_cylinders_that_hold_the_box_have_no_candidates_and_no_hits(scene_name, name):
-    """A cylinder whose tube holds the box gets empty bounds (no candidate pair); brute force
-    finds no hit on it, and the walk and binning lose no hit."""
-    from psurf_core.techniques.bounds import tube_holds_box
+def test_ball_holds_box_is_every_corner_within_the_radius():
+    """``ball_holds_box`` against the corners' distances (grown box: a ball through a corner
+    does not hold it)."""
+    from psurf_core.techniques.bounds import ball_holds_box
 
-    scene, rays, paths, ctx = small_pass(
-        load_scene(ROOT / "scenes" / f"{scene_name}.toml").with_scatter(2, 3), 13, 300)
+    scene = load_scene(ROOT / "scenes" / "area.toml")
+    lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
+    rng = np.random.default_rng(14)
+    c = rng.uniform(-1.5, 1.5, (2000, 3))
+    r = rng.uniform(0.5, 4.5, 2000)
+    corners = np.array([[(lo, hi)[(k >> a) & 1][a] for a in range(3)] for k in range(8)])
+    far = np.linalg.norm(corners[None] - c[:, None], axis=2).max(axis=1)
+    holds = ball_holds_box(scene, c, r)
+    assert 0.1 < holds.mean() < 0.9
+    np.testing.assert_array_equal(holds[np.abs(far - r) > 1e-6], (far < r)[np.abs(far - r) > 1e-6])
+    assert not ball_holds_box(scene, corners[:1] * 0.0, np.array([np.linalg.norm(hi - lo) / 2]))
+
+
+def _held(name, scene, G):
+    from psurf_core.techniques.bounds import ball_holds_box, tube_holds_box
+
+    if name.startswith("cylinder"):
+        return tube_holds_box(scene, G.x2, G.w2, G.T1 * G.s1)
+    return ball_holds_box(scene, G.x1, G.T1)
+
+
+@pytest.mark.parametrize("scene_name, kmin, kmax, name", [
+    *((sc, 2, 3, n) for sc in ("area", "study_medium")
+      for n in ("cylinder", "cylinder-short", "sphere")),
+    ("point", 1, 1, "ss-sphere"), ("area", 1, 1, "ss-sphere")])
+def test_surfaces_that_hold_the_box_have_no_candidates_and_no_hits(scene_name, kmin, kmax,
+                                                                   name):
+    """A cylinder whose tube, or a (single-scattering) sphere whose ball, holds the box gets
+    empty bounds (no candidate pair); brute force finds no hit on it, and the walk and
+    binning lose no hit."""
     tech = get_technique(name)
+    scene, rays, paths, ctx = small_pass(
+        load_scene(ROOT / "scenes" / f"{scene_name}.toml").with_scatter(kmin, kmax), 13, 300)
     prims = tech.create(paths, ctx)
-    G = prims.data
-    held = tube_holds_box(scene, G.x2, G.w2, G.T1 * G.s1)
+    held = _held(name, scene, prims.data)
     assert held.sum() >= 5, held.sum()
     assert np.all(prims.lo[held] > prims.hi[held])
     every, counted = brute_hits(tech, prims, rays, ctx)

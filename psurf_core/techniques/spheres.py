@@ -27,6 +27,7 @@ from ..sampling import phase_value
 from . import grids
 from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, dot
+from .bounds import ball_holds_box, no_candidates
 from .cones import segments, visibility  # the path's one segment x1 -> x0
 from .surface_common import (
     NDP_MIN,
@@ -162,10 +163,12 @@ class PhotonSphere(Technique):
         g = gather(paths, photon, K)
         x1, T1 = g["x1"], g["T1"]
         lo, hi = clip_bounds(ctx.scene, x1 - T1[:, None], x1 + T1[:, None])
+        clear = cull.box_clear(ctx.blockers, ctx.scene, lo, hi)
+        # A ball that holds the whole box has no surface point in the medium.
+        no_candidates(ctx.scene, lo, hi, ball_holds_box(ctx.scene, x1, T1))
         return Primitives(self.name, photon, K, lo, hi,
                           table(SphereGeometry, x1=x1, w2=g["w2"], T1=T1,
-                                beta=beta1(paths, photon, K),
-                                clear=cull.box_clear(ctx.blockers, ctx.scene, lo, hi)))
+                                beta=beta1(paths, photon, K), clear=clear))
 
     def scaled_normal(self, rec):
         """(H, 3) scaled normal on records ``rec`` (the inspector's)."""
