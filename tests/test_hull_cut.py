@@ -105,86 +105,87 @@ def test_spans_with_a_box_per_primitive_are_the_numpy_ones(inside):
     assert cut <= whole and len(cut) < 0.8 * len(whole)
 
 
-def test_tube_holds_box_leaves_no_surface_point_in_the_box():
-    """``tube_holds_box``: on tubes it says hold the (grown) box, no point of a dense sampling
-    of the tube's surface lies in the medium box; it holds for some tubes and not for others,
-    and not where a corner lies farther from the axis than the radius."""
-    from psurf_core.techniques.bounds import tube_holds_box
+def _box_samples(scene, rng, n):
+    lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
+    return lo + (hi - lo) * rng.random((n, 3))
+
+
+@pytest.mark.parametrize("solid", ["tube", "ball"])
+def test_outside_bounds_are_the_bounds_of_the_box_outside_the_solid(solid):
+    """``outside_box.outside_bounds``: every sampled point of the box outside the solid (and
+    every sampled point of its surface in the box) lies within them, and they are exact: the
+    sampled points reach them within the sampling's reach; some are empty (a solid that holds
+    the box), some cut, some the whole box."""
+    from psurf_core.techniques.outside_box import ball_edges, outside_bounds, tube_edges
 
     scene = load_scene(ROOT / "scenes" / "area.toml")
-    lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
-    rng = np.random.default_rng(12)
-    m = 600
-    x = rng.uniform(-1.5, 1.5, (m, 3))
+    blo, bhi = scene.medium.bounds_min, scene.medium.bounds_max
+    rng = np.random.default_rng(12 if solid == "tube" else 13)
+    m = 300
+    x = rng.uniform(-2.5, 2.5, (m, 3))
     w = rng.normal(size=(m, 3))
     w /= np.linalg.norm(w, axis=1)[:, None]
-    r = rng.uniform(0.2, 4.0, m)
-    holds = tube_holds_box(scene, x, w, r)
-    assert 0.1 < holds.mean() < 0.9, holds.mean()
-    # The surface x + h w + r (cos a e1 + sin a e2), sampled densely over the box's reach.
-    e1 = np.cross(w, [0.3, 0.5, 0.81])
-    e1 /= np.linalg.norm(e1, axis=1)[:, None]
-    e2 = np.cross(w, e1)
-    h = np.linspace(-6.0, 6.0, 241)
-    a = np.linspace(0.0, 2.0 * np.pi, 181)
-    ring = np.cos(a)[:, None, None] * e1[None] + np.sin(a)[:, None, None] * e2[None]
-    inside_any = np.zeros(m, bool)
-    for hk in h:
-        p = x[None] + hk * w[None] + r[None, :, None] * ring  # (angles, m, 3)
-        inside_any |= np.all((p > lo) & (p < hi), axis=2).any(axis=0)
-    assert not np.any(holds & inside_any)
-    assert np.any(~holds & inside_any)  # the sampling finds the surface in the box elsewhere
-    corners = np.array([[(lo, hi)[(c >> k) & 1][k] for k in range(3)] for c in range(8)])
-    d = corners[None] - x[:, None]
-    dist = np.linalg.norm(d - np.einsum("mcj,mj->mc", d, w)[..., None] * w[:, None], axis=2)
-    assert not np.any(holds & (dist.max(axis=1) > r))
-
-
-def test_ball_holds_box_is_every_corner_within_the_radius():
-    """``ball_holds_box`` against the corners' distances (grown box: a ball through a corner
-    does not hold it)."""
-    from psurf_core.techniques.bounds import ball_holds_box
-
-    scene = load_scene(ROOT / "scenes" / "area.toml")
-    lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
-    rng = np.random.default_rng(14)
-    c = rng.uniform(-1.5, 1.5, (2000, 3))
-    r = rng.uniform(0.5, 4.5, 2000)
-    corners = np.array([[(lo, hi)[(k >> a) & 1][a] for a in range(3)] for k in range(8)])
-    far = np.linalg.norm(corners[None] - c[:, None], axis=2).max(axis=1)
-    holds = ball_holds_box(scene, c, r)
-    assert 0.1 < holds.mean() < 0.9
-    np.testing.assert_array_equal(holds[np.abs(far - r) > 1e-6], (far < r)[np.abs(far - r) > 1e-6])
-    assert not ball_holds_box(scene, corners[:1] * 0.0, np.array([np.linalg.norm(hi - lo) / 2]))
-
-
-def _held(name, scene, G):
-    from psurf_core.techniques.bounds import ball_holds_box, tube_holds_box
-
-    if name.startswith("cylinder"):
-        return tube_holds_box(scene, G.x2, G.w2, G.T1 * G.s1)
-    return ball_holds_box(scene, G.x1, G.T1)
+    r = rng.uniform(0.3, 4.0, m)
+    quadratic = tube_edges(x, w, r) if solid == "tube" else ball_edges(x, r)
+    lo, hi = outside_bounds(scene, quadratic)
+    pts = _box_samples(scene, rng, 40000)
+    # Plus the box's edges and faces densely: the extremes of the outside part lie there.
+    t = np.linspace(0.0, 1.0, 201)
+    for k in range(3):
+        for a in (blo, bhi):
+            face = _box_samples(scene, rng, 4000)
+            face[:, k] = a[k]
+            pts = np.concatenate([pts, face])
+        j1, j2 = (k + 1) % 3, (k + 2) % 3
+        for c in range(4):  # the four edges along axis k
+            e = np.tile(blo, (t.size, 1))
+            e[:, j1] = (blo, bhi)[c & 1][j1]
+            e[:, j2] = (blo, bhi)[c >> 1][j2]
+            e[:, k] = blo[k] + t * (bhi[k] - blo[k])
+            pts = np.concatenate([pts, e])
+    empty = cut = whole = 0
+    for i in range(m):
+        q = pts - x[i]
+        d2 = np.sum(q * q, 1) - (np.sum(q * w[i], 1) ** 2 if solid == "tube" else 0.0)
+        out = pts[d2 >= r[i] ** 2]
+        if out.size == 0:
+            assert np.any(lo[i] > hi[i]), i
+            empty += 1
+            continue
+        assert np.all(out >= lo[i]) and np.all(out <= hi[i]), i
+        np.testing.assert_allclose(out.min(0), lo[i], atol=0.03)
+        np.testing.assert_allclose(out.max(0), hi[i], atol=0.03)
+        if np.all(lo[i] <= blo) and np.all(hi[i] >= bhi):
+            whole += 1
+        else:
+            cut += 1
+    assert empty >= 10 and cut >= 10 and whole >= 10, (empty, cut, whole)
 
 
 @pytest.mark.parametrize("scene_name, kmin, kmax, name", [
     *((sc, 2, 3, n) for sc in ("area", "study_medium")
       for n in ("cylinder", "cylinder-short", "sphere")),
     ("point", 1, 1, "ss-sphere"), ("area", 1, 1, "ss-sphere")])
-def test_surfaces_that_hold_the_box_have_no_candidates_and_no_hits(scene_name, kmin, kmax,
-                                                                   name):
-    """A cylinder whose tube, or a (single-scattering) sphere whose ball, holds the box gets
-    empty bounds (no candidate pair); brute force finds no hit on it, and the walk and
-    binning lose no hit."""
+def test_bounds_cut_to_the_box_outside_the_solid_lose_no_hit(scene_name, kmin, kmax, name):
+    """Cylinders and (single-scattering) spheres have bounds cut to the box outside their
+    tube or ball: some are empty, some cut; every brute-force hit lies within its
+    primitive's bounds (none on an empty one), and the walk and binning find every
+    brute-force hit."""
     tech = get_technique(name)
     scene, rays, paths, ctx = small_pass(
         load_scene(ROOT / "scenes" / f"{scene_name}.toml").with_scatter(kmin, kmax), 13, 300)
     prims = tech.create(paths, ctx)
-    held = _held(name, scene, prims.data)
-    assert held.sum() >= 5, held.sum()
-    assert np.all(prims.lo[held] > prims.hi[held])
+    empty = np.any(prims.lo > prims.hi, axis=1)
+    blo, bhi = scene.medium.bounds_min, scene.medium.bounds_max
+    cut = ~empty & np.any((prims.lo > blo + 1e-3) | (prims.hi < bhi - 1e-3), axis=1)
+    assert empty.sum() >= 5 and cut.sum() >= 5, (empty.sum(), cut.sum())
     every, counted = brute_hits(tech, prims, rays, ctx)
     assert every.size > 100
-    assert not np.any(np.isin(every % (1 << 32), np.flatnonzero(held)))
+    ray, prim = every >> 32, every % (1 << 32)
+    assert not np.any(empty[prim])
+    hits = tech.intersect(prims, rays, ray, prim, ctx)
+    x0 = rays.o[hits.ray] + hits.s[:, None] * rays.d[hits.ray]
+    assert np.all(x0 >= prims.lo[hits.prim] - 1e-12) and np.all(x0 <= prims.hi[hits.prim] + 1e-12)
     b_every, b_counted, _ = binned_hits(tech, prims, scene, rays, ctx)
     w_every, w_counted, _ = walked_hits(tech, prims, paths, rays, ctx)
     np.testing.assert_array_equal(b_every, every)

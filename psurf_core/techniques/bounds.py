@@ -1,8 +1,7 @@
 """Bounds of primitives: the hull binning uses for a wedge of a plane (:func:`wedge_hull`),
 the axis-aligned bounds of segments or rays (:func:`ray_bounds`), the parts of hulls where a
-hit can count (:func:`box_span`, :func:`hit_boxes`), tubes and balls with no point in the
-medium (:func:`tube_holds_box`, :func:`ball_holds_box`: :func:`no_candidates`), and all of
-these for a light strip (:func:`strip_bounds`).
+hit can count (:func:`box_span`, :func:`hit_boxes`; for surfaces that bound a convex solid:
+:mod:`.outside_box`), and all of these for a light strip (:func:`strip_bounds`).
 
 A hit whose rebuilt vertex leaves the medium box is blocked (its value is 0) but costs the
 walker its roots, acceptance and shadow status all the same: on ``study_medium`` at K = 2..3
@@ -21,8 +20,7 @@ from .base import clip_bounds, dot
 from .single import sweep_bounds
 from .surface_common import box_reach
 
-__all__ = ["ball_holds_box", "box_span", "hit_boxes", "no_candidates", "ray_bounds",
-           "strip_bounds", "tube_holds_box", "wedge_hull"]
+__all__ = ["box_span", "hit_boxes", "ray_bounds", "strip_bounds", "wedge_hull"]
 
 #: Growth of a box a hull is cut to, as a share of the medium box's largest side: the
 #: walker's own tests (``inside_box`` of a rebuilt vertex, exact in float64) decide every
@@ -74,50 +72,6 @@ def hit_boxes(scene: Scene, box_lo: np.ndarray, box_hi: np.ndarray, lo: np.ndarr
     e = _slack(scene)
     box_lo, box_hi = box_lo - e, box_hi + e
     return np.stack([box_lo, box_hi], axis=1), np.maximum(lo, box_lo), np.minimum(hi, box_hi)
-
-
-def _grown_corners(scene: Scene) -> np.ndarray:
-    """(8, 3) the corners of the medium box grown by :data:`CLIP_SLACK`."""
-    s = _slack(scene)
-    lo, hi = scene.medium.bounds_min - s, scene.medium.bounds_max + s
-    return np.array([[(lo, hi)[(c >> k) & 1][k] for k in range(3)] for c in range(8)])
-
-
-def ball_holds_box(scene: Scene, centre: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """(M,) bool: the medium box, grown by :data:`CLIP_SLACK`, lies inside the balls of
-    ``radius`` (M,) about ``centre`` (M, 3): every corner nearer the centre than the radius
-    (the distance to a point is convex). No point of such a sphere, or of a part of it, is in
-    the medium: a photon sphere on it has no hit, though its bounds, clipped to the box, are
-    the box (``ss-sphere`` on ``scenes/area.toml``: 7.6 % of the spheres with 18 % of their
-    candidate pairs; docs/study.md, "Tubes and balls that hold the box")."""
-    holds = np.ones(len(centre), bool)
-    for corner in _grown_corners(scene):
-        d = corner - centre
-        holds &= dot(d, d) < radius * radius
-    return holds
-
-
-def no_candidates(scene: Scene, lo: np.ndarray, hi: np.ndarray, where: np.ndarray) -> None:
-    """Give the primitives ``where`` ((M,) bool) empty bounds in place (``lo`` and ``hi``
-    (M, 3): the medium box's corners swapped, which clipping to the box keeps empty): the
-    spans and binning give them no candidate pair."""
-    lo[where], hi[where] = scene.medium.bounds_max, scene.medium.bounds_min
-
-
-def tube_holds_box(scene: Scene, x: np.ndarray, w: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """(M,) bool: the medium box, grown by :data:`CLIP_SLACK`, lies inside the infinite tubes
-    of radius ``r`` (M,) about the lines through ``x`` along unit ``w`` ((M, 3) each): every
-    corner is nearer the axis than ``r``. The distance to a line is convex, so the box's
-    farthest point from the axis is a corner, and such a tube has no point in the medium: a
-    photon cylinder on it has no hit, though its footprint (a prism clipped to the box) holds
-    the box (on ``scenes/area.toml``, 6.8 % of the cylinders with 15.9 % of their candidate
-    pairs; docs/study.md, "Tubes and balls that hold the box")."""
-    holds = np.ones(len(x), bool)
-    for corner in _grown_corners(scene):
-        d = corner - x
-        along = dot(d, w)
-        holds &= dot(d, d) - along * along < r * r
-    return holds
 
 
 def wedge_hull(scene: Scene, origin: np.ndarray, u: np.ndarray, v: np.ndarray,

@@ -29,7 +29,7 @@ from ..records import Vec, table
 from . import grids
 from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, dot
-from .bounds import no_candidates, tube_holds_box
+from .outside_box import cut_to_outside, tube_edges
 from .planes import segments, visibility  # the path x2 -> x1* = x2 + t2* w2 -> x0
 from .surface_common import (
     NDP_MIN,
@@ -223,9 +223,9 @@ class PhotonCylinder(Technique):
         ext = circle_extent(w2, T1 * s1)
         lo, hi = sweep_bounds(centre - ext, centre + ext, w2, g["T2"] if self.short else None)
         lo, hi = clip_bounds(ctx.scene, lo, hi)
-        # A tube that holds the whole box has no point in the medium, though the prism of its
-        # footprint holds the box: empty bounds, so no candidate pairs (every one a miss).
-        no_candidates(ctx.scene, lo, hi, tube_holds_box(ctx.scene, x2, w2, T1 * s1))
+        # Hits lie in the box outside the tube (.outside_box): where the tube holds the box,
+        # or a corner or face of it, the prism of the footprint does not see that.
+        cut_to_outside(ctx.scene, lo, hi, tube_edges(x2, w2, T1 * s1))
         # Footprint: rings circumscribing the circles at t2 = 0 and at its far end.
         h0 = T1 * c1
         h1 = h0 + g["T2"] if self.short else np.maximum(box_reach(ctx.scene, x2, w2), h0)

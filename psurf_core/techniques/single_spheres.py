@@ -24,8 +24,8 @@ from ..pdfs import emission_pdf
 from ..records import Vec, table
 from . import grids
 from .base import Compiled, Primitives, dot
-from .bounds import ball_holds_box, no_candidates
 from .cones import segments, visibility  # the path's one segment x1 -> x0
+from .outside_box import ball_edges, cut_to_outside
 from .single import SingleScatter, columns, sweep_bounds
 from .spheres import reconstruct  # the photon's record with w1*
 from .surface_common import NDP_MIN, camera_term, quadratic_roots, unit
@@ -150,8 +150,8 @@ class SingleSphere(SingleScatter):
         dmax = np.where(hemi & (n < 0), side, 1.0)
         dmin = np.where(hemi & (n > 0), -side, -1.0)
         lo, hi = sweep_bounds(d["x1"], dmin, dmax, d["T1"])
-        # A ball that holds the whole box has no point of its (hemi)sphere in the medium.
-        no_candidates(ctx.scene, lo, hi, ball_holds_box(ctx.scene, d["x1"], d["T1"]))
+        # Hits lie in the box outside the ball (.outside_box).
+        cut_to_outside(ctx.scene, lo, hi, ball_edges(d["x1"], d["T1"]))
         return self._prims(photon, lo, hi, ctx,
                            table(SphereGeometry, **columns(SphereGeometry, d, clear=0.0)))
 

@@ -27,8 +27,8 @@ from ..sampling import phase_value
 from . import grids
 from . import shadow_cull as cull
 from .base import Compiled, Primitives, Technique, clip_bounds, dot
-from .bounds import ball_holds_box, no_candidates
 from .cones import segments, visibility  # the path's one segment x1 -> x0
+from .outside_box import ball_edges, cut_to_outside
 from .surface_common import (
     NDP_MIN,
     beta1,
@@ -164,8 +164,8 @@ class PhotonSphere(Technique):
         x1, T1 = g["x1"], g["T1"]
         lo, hi = clip_bounds(ctx.scene, x1 - T1[:, None], x1 + T1[:, None])
         clear = cull.box_clear(ctx.blockers, ctx.scene, lo, hi)
-        # A ball that holds the whole box has no surface point in the medium.
-        no_candidates(ctx.scene, lo, hi, ball_holds_box(ctx.scene, x1, T1))
+        # Hits lie in the box outside the ball (.outside_box).
+        cut_to_outside(ctx.scene, lo, hi, ball_edges(x1, T1))
         return Primitives(self.name, photon, K, lo, hi,
                           table(SphereGeometry, x1=x1, w2=g["w2"], T1=T1,
                                 beta=beta1(paths, photon, K), clear=clear))
