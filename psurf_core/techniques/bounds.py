@@ -28,7 +28,8 @@ __all__ = ["box_span", "hit_boxes", "ray_bounds", "strip_bounds", "wedge_hull"]
 CLIP_SLACK = 1e-7
 
 
-def _slack(scene: Scene) -> float:
+def slack(scene: Scene) -> float:
+    """:data:`CLIP_SLACK` of the medium box's largest side (scene units)."""
     med = scene.medium
     return CLIP_SLACK * float(np.max(np.asarray(med.bounds_max) - np.asarray(med.bounds_min)))
 
@@ -38,7 +39,7 @@ def box_span(scene: Scene, origin: np.ndarray, direction: np.ndarray):
     direction`` inside the medium box grown by :data:`CLIP_SLACK` (``t_in > t_out``: the line
     misses it; a zero direction component: inside for every ``t`` or none)."""
     med = scene.medium
-    e = _slack(scene)
+    e = slack(scene)
     lo = np.asarray(med.bounds_min, float) - e
     hi = np.asarray(med.bounds_max, float) + e
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -69,7 +70,7 @@ def hit_boxes(scene: Scene, box_lo: np.ndarray, box_hi: np.ndarray, lo: np.ndarr
     lo, hi : (M, 3) float
         ``lo > hi`` (an empty rectangle) where the box is empty.
     """
-    e = _slack(scene)
+    e = slack(scene)
     box_lo, box_hi = box_lo - e, box_hi + e
     return np.stack([box_lo, box_hi], axis=1), np.maximum(lo, box_lo), np.minimum(hi, box_hi)
 

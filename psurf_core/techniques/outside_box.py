@@ -24,7 +24,7 @@ import numpy as np
 
 from ..scene import Scene
 from .base import dot
-from .bounds import CLIP_SLACK
+from .bounds import slack
 from .surface_common import quadratic_roots
 
 __all__ = ["ball_edges", "cut_to_outside", "outside_bounds", "tube_edges"]
@@ -70,9 +70,8 @@ def outside_bounds(scene: Scene, quadratic) -> tuple[np.ndarray, np.ndarray]:
     """``(lo, hi)`` (M, 3) each: the axis-aligned bounds of the medium box (grown by
     ``CLIP_SLACK``, then the bounds too) minus the open solids of ``quadratic``
     (:func:`tube_edges`, :func:`ball_edges`); ``lo > hi`` where a solid holds the box."""
-    med = scene.medium
-    s = CLIP_SLACK * float(np.max(np.asarray(med.bounds_max) - np.asarray(med.bounds_min)))
-    blo, bhi = np.asarray(med.bounds_min) - s, np.asarray(med.bounds_max) + s
+    s = slack(scene)
+    blo, bhi = np.asarray(scene.medium.bounds_min) - s, np.asarray(scene.medium.bounds_max) + s
     lo, hi = None, None
     for k in range(3):
         j1, j2 = (k + 1) % 3, (k + 2) % 3
