@@ -163,6 +163,8 @@ class PhotonSphere(Technique):
         g = gather(paths, photon, K)
         x1, T1 = g["x1"], g["T1"]
         lo, hi = clip_bounds(ctx.scene, x1 - T1[:, None], x1 + T1[:, None])
+        # The shadow cull on the bounds before the cut below: the cut can leave them empty,
+        # and a larger box only makes the cull more cautious.
         clear = cull.box_clear(ctx.blockers, ctx.scene, lo, hi)
         # Hits lie in the box outside the ball (.outside_box).
         cut_to_outside(ctx.scene, lo, hi, ball_edges(x1, T1))
