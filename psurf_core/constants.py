@@ -29,3 +29,7 @@ MAX_TRACE_DEPTH = 64
 
 #: Default memory budget (MiB) for chunked rays x primitives work.
 DEFAULT_MEMORY_BUDGET_MIB = 512
+
+#: Rough peak bytes per candidate ray-primitive pair in the numpy stages' intersect +
+#: evaluate: the memory budget over this is a chunk's candidate pairs (``max_pairs``).
+BYTES_PER_PAIR = 1200

@@ -18,7 +18,7 @@ import numpy as np
 from .accumulate import Welford
 from .binning import candidate_pairs
 from .camera import Rays, camera_rays
-from .constants import DEFAULT_MEMORY_BUDGET_MIB
+from .constants import BYTES_PER_PAIR, DEFAULT_MEMORY_BUDGET_MIB
 from .estimators import Estimator
 from .geometry import Blockers, blockers_of
 from .interrupt import check, held
@@ -37,9 +37,6 @@ PHOTON_BATCH = 1 << 15
 
 #: ``tally(tech, hits, prims, rays, unweighted, weighted)``: see :func:`photon_pass`.
 Tally = Callable[[Technique, object, object, Rays, np.ndarray, np.ndarray], None]
-
-#: Rough peak bytes per candidate ray-primitive pair in intersect + evaluate.
-_BYTES_PER_PAIR = 1200
 
 
 @dataclass(frozen=True)
@@ -92,7 +89,7 @@ class RenderSettings:
 
     @property
     def max_pairs(self) -> int:
-        return max(4096, self.memory_budget_mib * (1 << 20) // _BYTES_PER_PAIR)
+        return max(4096, self.memory_budget_mib * (1 << 20) // BYTES_PER_PAIR)
 
 
 def pass_generators(seed: int, pass_index: int):

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..binning import _chunk_bounds, _spans, screen_rects
+from ..constants import BYTES_PER_PAIR
 from ..interrupt import check
 from ..memo import memo
 from ..records import dtype_of, flat, widths
@@ -42,6 +43,15 @@ from .walk import accumulate, walker
 #: Candidate pairs from which a chunk is shared among threads (below, handing the work out
 #: costs more than it saves: ~20k pairs are ~2 ms of work).
 THREADED_MIN_PAIRS = 20_000
+
+#: Most bytes of compact rows a chunk of a walk that emits no hits may take. Such a walk
+#: needs ``n_roots`` compact rows (32 bytes) a candidate pair, not the numpy stages'
+#: ``BYTES_PER_PAIR`` (1200) that ``max_pairs`` counts, so it is chunked by what it takes,
+#: within the memory budget and this cap (the buffer is kept for the next pass): a
+#: ``planes`` pass at 64x48 with 5000 photons is one chunk instead of two, a walker's
+#: threads meet and the image is added to once instead of twice (docs/study.md, "Chunks by
+#: what a compiled walk takes").
+COMPACT_CHUNK_BYTES = 64 << 20
 
 _BUFFERS = HitBuffers()
 
@@ -187,9 +197,9 @@ class _Run:
         spans = tuple(np.ascontiguousarray(a, np.int64) for a in spans)
         s_prim, s_row, s_c0, s_c1 = spans
         cand = span_candidates(self.cs, s_row, s_c0, s_c1, int(self.ctx.scene.camera.width))
-        # Chunks as binning's (pixels x the most rays in a pixel, within max_pairs).
+        # Chunks as binning's (pixels x the most rays in a pixel, within the chunk's pairs).
         per_pix = max(int(np.diff(self.cs).max()), 1)
-        bounds = _chunk_bounds((s_c1 - s_c0) * per_pix, self.ctx.max_pairs)
+        bounds = _chunk_bounds((s_c1 - s_c0) * per_pix, self.chunk_pairs())
         threads = thread_count()
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             check()  # a held Ctrl-C (interrupt.held): between chunks
@@ -204,6 +214,16 @@ class _Run:
                 accumulate(out, *res["compact"])
             if res["n_full"]:
                 yield from self.finish(res, out)
+
+    def chunk_pairs(self) -> int:
+        """Candidate pairs a chunk may hold: binning's ``max_pairs`` where hits are emitted
+        (as many chunks as the stages yield), else what the memory budget and
+        :data:`COMPACT_CHUNK_BYTES` hold of the walk's compact rows."""
+        if self.emit:
+            return self.ctx.max_pairs
+        row = self.fam.n_roots * sum(np.dtype(t).itemsize * k for t, k in _COMPACT)
+        budget = min(self.ctx.max_pairs * BYTES_PER_PAIR, COMPACT_CHUNK_BYTES)
+        return max(self.ctx.max_pairs, budget // row)
 
     def walk_chunk(self, spans, cand, a, b, threads):
         """Run the walker over spans ``a .. b - 1`` on ``threads`` threads (pieces of equal
