@@ -142,10 +142,10 @@ def instrumented(load_cap: bool = True):
         with Clock(self.stats, "spans"):
             return spans(self)
 
-    def timed_walk(self, s, cand, a, b, threads):
+    def timed_walk(self, s, cand, a, b, threads, out=None):
         self.stats["threads_used"] = max(self.stats.get("threads_used", 0), threads)
         with Clock(self.stats, "walker"):
-            return walk_chunk(self, s, cand, a, b, threads)
+            return walk_chunk(self, s, cand, a, b, threads, out)
 
     fused._Run.spans, fused._Run.walk_chunk = timed_spans, timed_walk
     if not load_cap:

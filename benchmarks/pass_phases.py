@@ -5,8 +5,9 @@ and CPU time of each, and the cores it kept busy.
 ``render_pass`` itself runs (the path ``compare`` takes), with clocks around ``trace``, each
 technique's ``create`` and the compiled walk of each (``fused_pass``'s chunks), so the phases
 are the real ones, threads included. The serial phases (one core) are what a pass cannot
-spread over two cores; the walks' serial addition of their compact rows to the image
-(``fused.accumulate``) is printed beside them. Medians are not taken: the sums over
+spread over two cores; the walks' serial addition to the image (of their compact rows,
+``fused.accumulate``, or of their pieces' own images, ``fused.add_images``) is printed beside
+them. Medians are not taken: the sums over
 ``--passes`` passes after three warm ones, per pass.
 
 Usage::
@@ -72,10 +73,11 @@ def main(argv=None) -> int:
         return walk()
 
     R.fused_pass = fused_pass
-    # The compact rows' addition to the image, one core, between a chunk's walk and the next:
-    # inside the walk phases above, printed beside them.
+    # The addition to the image of the compact rows or of the pieces' own images, one core,
+    # between a chunk's walk and the next: inside the walk phases above, printed beside them.
     inner = collections.defaultdict(lambda: [0.0, 0.0])
-    F.accumulate = _clocked(inner, "accumulate (in the walks)", F.accumulate)
+    F.accumulate = _clocked(inner, "image addition (in the walks)", F.accumulate)
+    F.add_images = _clocked(inner, "image addition (in the walks)", F.add_images)
     for group, _ in est.sets:
         for tech in group:
             tech.create = _clocked(phases, f"create {tech.name}", tech.create)

@@ -1,5 +1,5 @@
 """Where one technique's walk goes: screen spans, candidate counts, the compiled walker and the
-accumulation, per pass (wall clock), with the hits per second ``make bench`` reports.
+image addition (compact rows or the pieces' own images), per pass (wall clock), with the hits per second ``make bench`` reports.
 
 Usage::
 
@@ -46,6 +46,7 @@ wrap(kf._Run, "spans", "spans")
 wrap(kf._Run, "walk_chunk", "walk_chunk")
 wrap(kf, "span_candidates", "span_candidates")
 wrap(kf, "accumulate", "accumulate")
+wrap(kf, "add_images", "add_images")
 tech = est.sets[0][0][0]
 
 

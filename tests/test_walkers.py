@@ -116,6 +116,8 @@ def test_every_walker_equals_stages_on_triangles(path, monkeypatch):
 def _walker_equals_stages(path, pinhole, monkeypatch, names):
     scene, blockers, rays, paths = _setup(path, pinhole)
     ctx = PassContext(scene, blockers, 0.0, 0, 1500)  # a small budget: several chunks
+    # ... of at most max_pairs (a walk's rows would let a chunk hold ~10x as many pairs)
+    monkeypatch.setattr(kfused, "CHUNK_BYTES", 1)
     numpy_tests = []  # calls of Blockers.occluded while a walker runs
     real = Blockers.occluded
     monkeypatch.setattr(Blockers, "occluded",
@@ -262,9 +264,11 @@ def test_switching_members_off_compiles_nothing_new():
 @pytest.mark.parametrize("name", ["area_occluder", "mesh_light"])
 def test_threads_change_nothing(name, monkeypatch):
     """Pieces on 3 threads (whatever the machine has) give the same hits in the same order
-    and the same image bits as one thread."""
+    and the same image bits as one thread (each piece adding to its own image, then those
+    in order: ``fused.CHUNK_PIECES``)."""
     monkeypatch.setattr(kfused, "THREADED_MIN_PAIRS", 0)
     monkeypatch.setattr(kspans, "_THREADED_MIN_PRIMS", 0)
+    monkeypatch.setattr(kfused, "CHUNK_BYTES", 1)  # chunks of max_pairs: several
     scene, blockers, rays, paths = _setup(SCENES[[p.stem for p in SCENES].index(name)], True,
                                           width=32, height=24, photons=300)
     ctx = PassContext(scene, blockers, 0.0, 0, 20000)
@@ -298,3 +302,40 @@ def test_images_with_and_without_hits_materialized_agree():
         a = render_pass(scene, est, 0, 3, RenderSettings(photons=150))
         b = render_pass(scene, est, 0, 3, RenderSettings(photons=150), record=PassRecord())
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(a).max(), err_msg=spec)
+
+
+@pytest.mark.parametrize("photons, pieces_own_images", [(300, True), (8, False)])
+def test_each_piece_its_own_image(photons, pieces_own_images, monkeypatch):
+    """A chunk cut in ``CHUNK_PIECES`` pieces adds each piece's hits to an image of its own
+    (the first to the pass's), those in piece order, where the images hold fewer cells than
+    the chunk's compact rows would (``pieces_own_images``: 300 photons at 32x24), else
+    compact rows added in order (8 photons): either way the image has the same bits on 1
+    and 3 threads and whether the pass keeps its hits or not, and agrees to rounding with
+    one piece (the rows added one after another)."""
+    from psurf_core.render import PassRecord
+
+    monkeypatch.setattr(kspans, "_THREADED_MIN_PRIMS", 0)
+    added = []  # chunks whose compact rows were added (not their pieces' images)
+    real = kfused.accumulate
+    monkeypatch.setattr(kfused, "accumulate", lambda *a: added.append(1) or real(*a))
+    scene = load_scene(SCENES[[p.stem for p in SCENES].index("area_occluder")])
+    scene = replace(scene, camera=replace(scene.camera, width=32, height=24))
+    settings = RenderSettings(photons=photons)
+    for spec in ("planes", "paper-multi"):
+        est = parse_estimator(spec, scene)
+        monkeypatch.setattr(kfused, "THREADED_MIN_PAIRS", 1 << 40)  # one piece a chunk
+        one_piece = render_pass(scene, est, 0, 3, settings)
+        monkeypatch.setattr(kfused, "THREADED_MIN_PAIRS", 0)  # CHUNK_PIECES a chunk
+        images = []
+        for threads in (1, 3):
+            for mod in (kfused, kspans):
+                monkeypatch.setattr(mod, "thread_count", lambda t=threads: t)
+            added.clear()
+            images.append(render_pass(scene, est, 0, 3, settings))
+            assert bool(added) != pieces_own_images, spec
+        kept = render_pass(scene, est, 0, 3, settings, record=PassRecord())
+        assert np.abs(images[0]).max() > 0, spec
+        np.testing.assert_array_equal(images[0], images[1], err_msg=spec)
+        np.testing.assert_array_equal(images[0], kept, err_msg=spec)
+        np.testing.assert_allclose(images[0], one_piece, rtol=1e-12,
+                                   atol=1e-12 * np.abs(one_piece).max(), err_msg=spec)

@@ -37,21 +37,28 @@ from .mis import member_params, weight_of
 from .rays import ray_table
 from .shadow import shadow_args
 from .spans import hull_spans
-from .threads import PIECES_PER_THREAD, on_threads, thread_count
+from .threads import on_threads, thread_count
 from .walk import accumulate, walker
 
 #: Candidate pairs from which a chunk is shared among threads (below, handing the work out
 #: costs more than it saves: ~20k pairs are ~2 ms of work).
 THREADED_MIN_PAIRS = 20_000
 
-#: Most bytes of compact rows a chunk of a walk that emits no hits may take. Such a walk
-#: needs ``n_roots`` compact rows (32 bytes) a candidate pair, not the numpy stages'
-#: ``BYTES_PER_PAIR`` (1200) that ``max_pairs`` counts, so it is chunked by what it takes,
-#: within the memory budget and this cap (the buffer is kept for the next pass): a
-#: ``planes`` pass at 64x48 with 5000 photons is one chunk instead of two, a walker's
-#: threads meet and the image is added to once instead of twice (docs/study.md, "Chunks by
-#: what a compiled walk takes").
-COMPACT_CHUNK_BYTES = 64 << 20
+#: Most bytes of output rows a chunk of a walk may take. A walk needs at most ``n_roots`` full
+#: rows (:meth:`_Run.full_fields`, ~100 bytes) a candidate pair, not the numpy stages'
+#: ``BYTES_PER_PAIR`` (1200) that ``max_pairs`` counts, so it is chunked by what its rows
+#: take, within the memory budget and this cap (emitting or not: a chunk's cut decides the
+#: bits of its image, see :data:`CHUNK_PIECES`): a ``planes`` pass at 64x48 with 5000
+#: photons is one chunk instead of two (docs/study.md, "Each piece its own image").
+CHUNK_BYTES = 128 << 20
+
+#: Pieces a chunk of at least ``THREADED_MIN_PAIRS`` candidate pairs is cut into (equal
+#: candidate pairs each), handed to whichever thread is free. Where the image is small
+#: beside the chunk (:meth:`_Run.walk_chunk`), each piece adds its hits to an image of its
+#: own (the first piece to the pass's), and those are added to the pass's in piece order:
+#: the image's bits depend on the cut, so the count is fixed, never the thread count, and a
+#: pass that emits its hits adds them the same way (:meth:`_Run.finish`).
+CHUNK_PIECES = 8
 
 _BUFFERS = HitBuffers()
 
@@ -205,55 +212,72 @@ class _Run:
             check()  # a held Ctrl-C (interrupt.held): between chunks
             n_cand = int(cand[a:b].sum())
             th = threads if n_cand >= THREADED_MIN_PAIRS else 1
-            res = self.walk_chunk(spans, cand, a, b, th)
+            res = self.walk_chunk(spans, cand, a, b, th, out)
             if self.stats is not None:
                 st = self.stats
                 st["candidates"] = st.get("candidates", 0) + n_cand
                 st["hits"] = st.get("hits", 0) + res["n_hits"]
-            if out is not None:
+            if res["compact_rows"]:
                 accumulate(out, *res["compact"])
             if res["n_full"]:
                 yield from self.finish(res, out)
 
     def chunk_pairs(self) -> int:
-        """Candidate pairs a chunk may hold: binning's ``max_pairs`` where hits are emitted
-        (as many chunks as the stages yield), else what the memory budget and
-        :data:`COMPACT_CHUNK_BYTES` hold of the walk's compact rows."""
-        if self.emit:
-            return self.ctx.max_pairs
-        row = self.fam.n_roots * sum(np.dtype(t).itemsize * k for t, k in _COMPACT)
-        budget = min(self.ctx.max_pairs * BYTES_PER_PAIR, COMPACT_CHUNK_BYTES)
+        """Candidate pairs a chunk may hold: what the memory budget and :data:`CHUNK_BYTES`
+        hold of the walk's full rows (the same whether it emits them or not), at least
+        binning's ``max_pairs``."""
+        row = self.fam.n_roots * sum(np.dtype(t).itemsize * k for t, k in self.full_fields())
+        budget = min(self.ctx.max_pairs * BYTES_PER_PAIR, CHUNK_BYTES)
         return max(self.ctx.max_pairs, budget // row)
 
-    def walk_chunk(self, spans, cand, a, b, threads):
-        """Run the walker over spans ``a .. b - 1`` on ``threads`` threads (pieces of equal
-        candidate pairs, each writing its own region of the outputs)."""
-        if threads <= 1:
+    def walk_chunk(self, spans, cand, a, b, threads, out=None):
+        """Run the walker over spans ``a .. b - 1`` on ``threads`` threads: in
+        :data:`CHUNK_PIECES` pieces of equal candidate pairs (one below
+        ``THREADED_MIN_PAIRS``), each writing its own region of the outputs. Without
+        ``emit``, where the pieces' images hold fewer cells than the chunk's compact rows
+        would (``to_img``; so on all but large images), each piece adds its hits to its own
+        image (the first to ``out``), added to ``out`` in order; else to compact rows."""
+        n_cand = int(cand[a:b].sum())
+        if n_cand < THREADED_MIN_PAIRS:
             cut = [a, b]
         else:
             cum = np.cumsum(cand[a:b])
-            k = threads * PIECES_PER_THREAD
+            k = CHUNK_PIECES
             cut = np.unique(np.concatenate(
                 [[a], a + np.searchsorted(cum, cum[-1] * np.arange(1, k) / k), [b]])).tolist()
         caps = [int(cand[i:j].sum()) * self.fam.n_roots for i, j in zip(cut[:-1], cut[1:],
                                                                           strict=True)]
         off = np.concatenate([[0], np.cumsum(caps)]).astype(np.int64)
+        n_rays = len(self.rays)
+        to_img = (len(caps) - 1) * n_rays <= int(off[-1])
+        use_img = to_img and not self.emit and out is not None
+        rows = 0 if self.emit or use_img else int(off[-1])
         full = _BUFFERS.take("full", self.full_fields(), int(off[-1]) if self.emit else 0)
-        compact = _BUFFERS.take("compact", _COMPACT, 0 if self.emit else int(off[-1]))
+        compact = _BUFFERS.take("compact", _COMPACT, rows)
+        own = len(caps) - 1 if use_img else 0
+        images = _BUFFERS.take("images", _IMAGE, own * n_rays)[0].reshape(-1, n_rays, 3)
         ends = np.zeros((len(caps), 3), np.int64)
+        nowhere = np.zeros((0, 3))
 
         def piece(j):
             n0 = off[j] if self.emit else 0
-            na0 = 0 if self.emit else off[j]
+            na0 = off[j] if rows else 0
             lim = off[j + 1] if self.emit else 0
+            img = nowhere
+            if use_img:
+                img = out if j == 0 else images[j - 1]
+                if j:
+                    img.fill(0.0)
             ends[j] = self.walk(cut[j], cut[j + 1], *spans, *self.const, *full, n0, lim,
-                                *compact, na0)
+                                *compact, na0, img, use_img)
 
         on_threads(piece, len(caps), threads)
+        add_images(out, images)
         n_full = int((ends[:, 0] - (off[:-1] if self.emit else 0)).sum())
         return dict(full=full, compact=(compact[0], compact[1], off[:-1].copy(), ends[:, 1]),
                     full_ranges=(off[:-1] if self.emit else np.zeros(len(caps), np.int64),
-                                 ends[:, 0]), n_full=n_full, n_hits=int(ends[:, 2].sum()))
+                                 ends[:, 0]), n_full=n_full, n_hits=int(ends[:, 2].sum()),
+                    to_img=to_img, n_rays=n_rays, compact_rows=bool(rows) and out is not None)
 
     def full_fields(self):
         return (*_FULL_HEAD, (np.float64, sum(widths(self.fam.hit))), *_FULL_TAIL)
@@ -269,9 +293,29 @@ class _Run:
             dtype_of(self.fam.hit)).reshape(-1).view(np.recarray))
         yield hits, val, wts if self.weighted else None
         if out is not None and self.add_emitted:
-            # In the walker's order without emit (np.add.at adds one row after another, as
-            # accumulate does), so the image does not depend on emit.
-            np.add.at(out, ray, val * (wts[:, None] if self.weighted else 1.0))
+            # As the walk without emit adds them (np.add.at adds one row after another, as
+            # the walker and accumulate do): each piece to its own image where the walk
+            # would (the first to ``out``), those to ``out`` in order; so the image does not
+            # depend on emit.
+            v = val * (wts[:, None] if self.weighted else 1.0)
+            if not res["to_img"]:
+                np.add.at(out, ray, v)
+                return
+            at = np.concatenate([[0], np.cumsum(ends - starts)])
+            np.add.at(out, ray[at[0]:at[1]], v[at[0]:at[1]])
+            for j in range(1, len(starts)):
+                img = np.zeros((res["n_rays"], 3))
+                np.add.at(img, ray[at[j]:at[j + 1]], v[at[j]:at[j + 1]])
+                out += img
+
+
+def add_images(out, images) -> None:
+    """``out += images[j]`` for every piece's own image ``j`` ((P, R, 3)), in order: the
+    image's bits depend on the cut alone (:data:`CHUNK_PIECES`). One core; 7 images of a
+    64x48 image are ~50 us, a chunk's compact rows ~1 ms (docs/study.md, "Each piece its own
+    image")."""
+    for img in images:
+        out += img
 
 
 @kernel
@@ -291,6 +335,8 @@ _FULL_HEAD = ((np.int64, 1), (np.int64, 1), (np.float64, 1))
 _FULL_TAIL = ((np.float64, 3), (np.float64, 1), (np.int8, 3))
 #: Compact rows: ray (int64), weighted value (3).
 _COMPACT = ((np.int64, 1), (np.float64, 3))
+#: A piece's own image: per ray, the weighted values' sum (3).
+_IMAGE = ((np.float64, 3),)
 
 
 def _photon_lights(paths, scene):

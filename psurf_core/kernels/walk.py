@@ -17,10 +17,11 @@ Evaluate do:
     the hit's full path and the balance / power weight (:mod:`.mis`), where the technique is
     in an MIS set.
 
-``G`` is the primitive's geometry record, read once per span. Hits go to one of two outputs:
-*full rows* (ray, primitive, ``s``, the hit record, value, weight, shadow statuses: what
-``Hits`` and the UI need) when ``emit`` is set, else *compact rows* (ray, weighted value)
-that the caller adds to the image in order. A walker is built per (family, MIS set, member)
+``G`` is the primitive's geometry record, read once per span. Hits go to one of three
+outputs: *full rows* (ray, primitive, ``s``, the hit record, value, weight, shadow statuses:
+what ``Hits`` and the UI need) when ``emit`` is set, else the weighted values added to a
+per-ray image of the walker's piece, or *compact rows* (ray, weighted value) that the caller
+adds to the image in order (:mod:`.fused` chooses). A walker is built per (family, MIS set, member)
 by :func:`walker` and compiled once per clone (the on-disk cache is keyed by every source it
 inlines, :mod:`.cache`).
 """
@@ -74,10 +75,11 @@ def _build(fam, weight, one_origin):
     def walk(i0, i1, s_prim, s_row, s_c0, s_c1, width, cs, rt, rid, origin, geom, short,
              medium, blockers, photon, kk, px, pw, pt, lights, params, emit,
              o_ray, o_prim, o_s, o_hit, o_val, o_w, o_st, n, lim,
-             a_ray, a_val, na):  # pragma: no cover - compiled
+             a_ray, a_val, na, img, to_img):  # pragma: no cover - compiled
         """Hits of spans ``i0 .. i1 - 1`` (module docstring); full rows from ``n`` (up to
-        ``lim``), compact rows from ``na``. Returns the next free full and compact rows and
-        the number of hits (occluded ones included: every hit is shaded)."""
+        ``lim``); without ``emit``, the weighted values added to ``img[ray]`` where
+        ``to_img``, else compact rows from ``na``. Returns the next free full and compact
+        rows and the number of hits (occluded ones included: every hit is shaded)."""
         n_hits = 0
         # Passed to the shadow test at every hit: without its reference count (.views).
         shadow = borrowed(blockers)
@@ -143,6 +145,10 @@ def _build(fam, weight, one_origin):
                                 o_st[n, c] = st[c]
                             o_w[n] = w
                             n += 1
+                        elif scal != 0.0 and to_img:
+                            r = rid[k]
+                            for c in range(3):
+                                img[r, c] += (G.beta[c] * scal) * w
                         elif scal != 0.0:
                             a_ray[na] = rid[k]
                             for c in range(3):
