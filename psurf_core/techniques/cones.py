@@ -172,15 +172,15 @@ def contribution(G, psi, s, s_min, hit, short, medium):
     """``[rho(c1)/p(c1) = 1/2pi] [E(t1*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit
     photon weight."""
     extra = 0.0 if short else hit.t1
-    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
-        hit.n_dot_psi
+    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / \
+        (2.0 * np.pi * hit.n_dot_psi)
 
 
 @twin(contribution)
 def _contribution(G, psi, s, s_min, hit, short, medium):
     extra = 0.0 if short else hit.t1
-    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
-        hit.n_dot_psi
+    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / \
+        (2.0 * np.pi * hit.n_dot_psi)
 
 
 # ------------------------------------------------------------------------- MIS

@@ -151,15 +151,15 @@ def _accept(G, o, psi, s, short):
 def contribution(G, psi, s, s_min, hit, short, medium):
     """``(1/2pi) [E(t2*)] ss rho0 E(s* - s_min) / |n . psi|`` per unit photon weight."""
     extra = 0.0 if short else hit.t2
-    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
-        hit.n_dot_psi
+    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / \
+        (2.0 * np.pi * hit.n_dot_psi)
 
 
 @twin(contribution)
 def _contribution(G, psi, s, s_min, hit, short, medium):
     extra = 0.0 if short else hit.t2
-    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / (2.0 * np.pi) / \
-        hit.n_dot_psi
+    return camera_term(-dot(hit.w1, psi), s - s_min, extra, medium) / \
+        (2.0 * np.pi * hit.n_dot_psi)
 
 
 # ------------------------------------------------------------------------- MIS
