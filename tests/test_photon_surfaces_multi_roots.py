@@ -157,7 +157,7 @@ def test_cone_slant_reads_the_slant_length_off_the_axis():
     """``cones.slant`` of points on a double cone: ``+|v|`` on the photon's nappe, ``-|v|``
     on the mirror one, to 1e-11 relative for every ``c1`` (the axis read ``h / c1`` from
     ``|c1| >= C1_DIRECT``, the norm below it, and ``c1 = 0``), and its compiled twin
-    equal to it."""
+    equal to it; ``cones.inverse_slant`` is its inverse, twins equal too."""
     from numba import njit
 
     from psurf_core.techniques import cones
@@ -181,6 +181,13 @@ def test_cone_slant_reads_the_slant_length_off_the_axis():
     twin = njit(lambda a, b, c: cones.slant(a, b, c))
     compiled = np.array([twin(tuple(v[i]), tuple(w2[i]), c1[i]) for i in range(n)])
     np.testing.assert_array_equal(compiled, got)
+    # Its inverse (c1 / h where slant reads h / c1): 1 / slant to 1e-11 on the photon's
+    # nappe and the mirror one alike (c1 = 0 aside: there h = 0 and the slant is -|v|).
+    inv = cones.inverse_slant(v, w2, c1, got)
+    np.testing.assert_allclose(inv, 1.0 / np.where(c1 == 0.0, -t, side * t), rtol=1e-11)
+    twin = njit(lambda a, b, c, d: cones.inverse_slant(a, b, c, d))
+    compiled = np.array([twin(tuple(v[i]), tuple(w2[i]), c1[i], got[i]) for i in range(n)])
+    np.testing.assert_array_equal(compiled, inv)
 
 
 def test_cylinder_radial_unit_on_its_roots():
