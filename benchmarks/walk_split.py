@@ -1,5 +1,6 @@
 """Where one technique's walk goes: screen spans, candidate counts, the compiled walker and the
-image addition (compact rows or the pieces' own images), per pass (wall clock), with the hits per second ``make bench`` reports.
+image addition (compact rows or the pieces' own images), per pass (wall clock), with the hits
+per second ``make bench`` reports.
 
 Usage::
 

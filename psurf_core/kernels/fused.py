@@ -5,9 +5,11 @@ compiled declaration (``Technique.compiled``). It
 
 1. computes the candidate pixel spans binning would walk (hull polygons clipped and
    projected, :func:`.spans.hull_spans`, or the screen rectangles), and the ray table;
-2. cuts them into chunks of at most ~``ctx.max_pairs`` candidate pairs (as binning does) and
-   a large chunk into pieces for threads (:mod:`.threads`) whose outputs are put back in span
-   order, so hits, their order and the image do not depend on the thread count;
+2. cuts them into chunks within the memory budget (what the walk's rows take,
+   :meth:`_Run.chunk_pairs`) and a large chunk into a fixed number of pieces for threads
+   (:mod:`.threads`, :data:`CHUNK_PIECES`) whose hits are put back in span order and whose
+   weighted values go to an image per piece, added in piece order (or to compact rows added
+   in order), so hits, their order and the image do not depend on the thread count;
 3. runs the walker (:mod:`.walk`) with the MIS weight of the technique's set composed in
    (:mod:`.mis`) where every member has a compiled density, and its shadow tests against
    every blocker, triangle meshes included (:mod:`.shadow`, :mod:`.mesh_bvh`).

@@ -18,10 +18,11 @@ from numba import get_num_threads
 
 from ..interrupt import check
 
-#: Pieces per thread a shared job is cut into (a chunk: equal candidate pairs each; hull
-#: spans: equal primitives each), handed out in order to whichever thread is free: a thread
-#: that loses its core to another process does not hold the others back by more than one
-#: piece.
+#: Pieces per thread a shared job is cut into (hull spans: equal primitives each; the
+#: tracer's batches), handed out in order to whichever thread is free: a thread that loses
+#: its core to another process does not hold the others back by more than one piece. (A
+#: walker's chunk is cut into a fixed ``fused.CHUNK_PIECES``: its image's bits depend on the
+#: cut.)
 PIECES_PER_THREAD = 4
 
 

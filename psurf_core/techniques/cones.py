@@ -130,9 +130,9 @@ def _slant(v, w2, c1):
 def inverse_slant(v, w2, c1, t1):
     """(H,) ``1 / t1`` of :func:`slant` ``t1`` ((H,)) of the points ``x1 + v``: read as
     ``c1 / h`` where :func:`slant` reads ``t1 = h / c1``, a division beside that one rather
-    than after it (a hit's ``w1 = v / t1`` then waits on one division, not two: the cone
-    walker's CPU 0.98x, docs/study.md, "Divisions off the cones' and cylinders' chains"),
-    else ``1 / t1``."""
+    than after it (a hit's ``w1 = v / t1`` then waits on one division, not two: with the
+    contribution's single division, the cone walker's CPU 0.97x, docs/study.md, "Each piece
+    its own image"), else ``1 / t1``."""
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(np.abs(c1) >= C1_DIRECT, c1 / dot(v, w2), 1.0 / t1)
 
