@@ -153,8 +153,8 @@ def accept(G, o, psi, s, short):
     ok = t1 > 0
     if short:
         ok &= t1 < G.T1
-    # (meaningless where not ok, t1 <= 0: unused there)
-    w1 = v * inverse_slant(v, G.w2, G.c1, t1)[:, None]
+    # 1 where not ok (t1 <= 0: unused there; the twin computes it, meaningless, anyway)
+    w1 = v * np.where(ok, inverse_slant(v, G.w2, G.c1, t1), 1.0)[:, None]
     ndp = np.abs(dot(scaled_normal(G.w2, w1, t1), psi))
     return ok & (ndp > NDP_MIN), table(ConeHit, t1=t1, w1=w1, n_dot_psi=ndp)
 
