@@ -83,6 +83,10 @@ def _build(fam, weight, one_origin):
         n_hits = 0
         # Passed to the shadow test at every hit: without its reference count (.views).
         shadow = borrowed(blockers)
+        # The photons' arrays, read by ``photon_row`` at every primitive of an MIS set:
+        # passed there with their counts, they were 6 atomic increfs a primitive on the
+        # arrays both threads share (``benchmarks/walk_ir.py paper-multi``).
+        paths = borrowed((px, pw, pt))
         # With one origin for every ray, the origin the twins see is the same value at every
         # pair: LLVM then moves what depends on it alone out of the loop (a plane's check
         # that the ray starts where Create computed its solver vectors, ``cached_solve``)
@@ -99,8 +103,8 @@ def _build(fam, weight, one_origin):
             p = s_prim[i]
             G = load(geom, p, Geometry)
             if mis:
-                base = photon_row(px, pw, pt, lights, photon[p], kk[p], medium.sigma_t,
-                                  medium.g)
+                base = photon_row(paths[0], paths[1], paths[2], lights, photon[p], kk[p],
+                                  medium.sigma_t, medium.g)
                 # Which members can produce this photon's path, and their shares: the
                 # same for all of the primitive's hits.
                 shares = shares_of(base, params)
