@@ -7,8 +7,8 @@ technique's ``create`` and the compiled walk of each (``fused_pass``'s chunks), 
 are the real ones, threads included. The serial phases (one core) are what a pass cannot
 spread over two cores; the walks' serial addition to the image (of their compact rows,
 ``fused.accumulate``, or of their pieces' own images, ``fused.add_images``) is printed beside
-them. Medians are not taken: the sums over
-``--passes`` passes after three warm ones, per pass.
+them. Medians are not taken: the sums over ``--passes`` passes after three warm ones, per
+pass.
 
 Usage::
 

@@ -21,9 +21,9 @@ Evaluate do:
 outputs: *full rows* (ray, primitive, ``s``, the hit record, value, weight, shadow statuses:
 what ``Hits`` and the UI need) when ``emit`` is set, else the weighted values added to a
 per-ray image of the walker's piece, or *compact rows* (ray, weighted value) that the caller
-adds to the image in order (:mod:`.fused` chooses). A walker is built per (family, MIS set, member)
-by :func:`walker` and compiled once per clone (the on-disk cache is keyed by every source it
-inlines, :mod:`.cache`).
+adds to the image in order (:mod:`.fused` chooses). A walker is built per (family, MIS set,
+member) by :func:`walker` and compiled once per clone (the on-disk cache is keyed by every
+source it inlines, :mod:`.cache`).
 """
 
 from __future__ import annotations
