@@ -239,26 +239,25 @@ class _Run:
         ``emit``, where the pieces' images hold fewer cells than the chunk's compact rows
         would (``to_img``; so on all but large images), each piece adds its hits to its own
         image (the first to ``out``), added to ``out`` in order; else to compact rows."""
-        n_cand = int(cand[a:b].sum())
-        if n_cand < THREADED_MIN_PAIRS:
+        # Candidate pairs before each span of the chunk: the pieces' cut and their row ranges.
+        cum = np.concatenate([[0], np.cumsum(cand[a:b])])
+        if cum[-1] < THREADED_MIN_PAIRS:
             cut = [a, b]
         else:
-            cum = np.cumsum(cand[a:b])
             k = CHUNK_PIECES
             cut = np.unique(np.concatenate(
-                [[a], a + np.searchsorted(cum, cum[-1] * np.arange(1, k) / k), [b]])).tolist()
-        caps = [int(cand[i:j].sum()) * self.fam.n_roots for i, j in zip(cut[:-1], cut[1:],
-                                                                          strict=True)]
-        off = np.concatenate([[0], np.cumsum(caps)]).astype(np.int64)
+                [[a], a + np.searchsorted(cum[1:], cum[-1] * np.arange(1, k) / k), [b]])).tolist()
+        off = (cum[np.asarray(cut) - a] * self.fam.n_roots).astype(np.int64)
+        pieces = len(cut) - 1
         n_rays = len(self.rays)
-        to_img = (len(caps) - 1) * n_rays <= int(off[-1])
+        to_img = (pieces - 1) * n_rays <= int(off[-1])
         use_img = to_img and not self.emit and out is not None
         rows = 0 if self.emit or use_img else int(off[-1])
         full = _BUFFERS.take("full", self.full_fields(), int(off[-1]) if self.emit else 0)
         compact = _BUFFERS.take("compact", _COMPACT, rows)
-        own = len(caps) - 1 if use_img else 0
+        own = pieces - 1 if use_img else 0
         images = _BUFFERS.take("images", _IMAGE, own * n_rays)[0].reshape(-1, n_rays, 3)
-        ends = np.zeros((len(caps), 3), np.int64)
+        ends = np.zeros((pieces, 3), np.int64)
         nowhere = np.zeros((0, 3))
 
         def piece(j):
@@ -273,11 +272,11 @@ class _Run:
             ends[j] = self.walk(cut[j], cut[j + 1], *spans, *self.const, *full, n0, lim,
                                 *compact, na0, img, use_img)
 
-        on_threads(piece, len(caps), threads)
+        on_threads(piece, pieces, threads)
         add_images(out, images)
         n_full = int((ends[:, 0] - (off[:-1] if self.emit else 0)).sum())
         return dict(full=full, compact=(compact[0], compact[1], off[:-1].copy(), ends[:, 1]),
-                    full_ranges=(off[:-1] if self.emit else np.zeros(len(caps), np.int64),
+                    full_ranges=(off[:-1] if self.emit else np.zeros(pieces, np.int64),
                                  ends[:, 0]), n_full=n_full, n_hits=int(ends[:, 2].sum()),
                     to_img=to_img, n_rays=n_rays, compact_rows=bool(rows) and out is not None)
 
