@@ -59,13 +59,13 @@ def _clip_to_box(a, b, lo, hi):  # pragma: no cover - compiled
 
 
 @inline
-def _clip_to_faces(a, b, faces, nf):  # pragma: no cover - compiled
-    """Parameters ``(t0, t1)`` of segment ``a -> b`` inside the half-spaces
-    ``faces[:nf]`` (rows ``(n, offset)``: keep ``x . n >= offset``)."""
+def _clip_to_faces(fa_k, fb_k, nf):  # pragma: no cover - compiled
+    """Parameters ``(t0, t1)`` of a segment ``a -> b`` inside the half-spaces of
+    :func:`_faces`, from the signed values ``fa_k[k]``, ``fb_k[k]`` of its ends at face
+    ``k`` (``x . n - offset``, keep ``>= 0``; :func:`_corner_values`)."""
     t0, t1 = 0.0, 1.0
     for k in range(nf):
-        fa = a[0] * faces[k, 0] + a[1] * faces[k, 1] + a[2] * faces[k, 2] - faces[k, 3]
-        fb = b[0] * faces[k, 0] + b[1] * faces[k, 1] + b[2] * faces[k, 2] - faces[k, 3]
+        fa, fb = fa_k[k], fb_k[k]
         if fa < 0.0 and fb < 0.0:
             return 1.0, 0.0
         if fa < 0.0:
@@ -73,6 +73,19 @@ def _clip_to_faces(a, b, faces, nf):  # pragma: no cover - compiled
         elif fb < 0.0:
             t1 = min(t1, fa / (fa - fb))
     return t0, t1
+
+
+@inline
+def _corner_values(lo, hi, faces, nf, fc):  # pragma: no cover - compiled
+    """``fc[q, k]``: face ``k``'s ``x . n - offset`` at box corner ``q`` (bit ``c`` of ``q``:
+    ``hi[c]``, else ``lo[c]``). Each box edge joins two corners: computed once a corner, not
+    once an edge's end (8 corners, 24 ends)."""
+    for q in range(8):
+        x = hi[0] if q & 1 else lo[0]
+        y = hi[1] if q & 2 else lo[1]
+        z = hi[2] if q & 4 else lo[2]
+        for k in range(nf):
+            fc[q, k] = x * faces[k, 0] + y * faces[k, 1] + z * faces[k, 2] - faces[k, 3]
 
 
 @inline
@@ -129,29 +142,37 @@ def _add(pts, n, a, b, t):  # pragma: no cover - compiled
 
 
 @inline
-def _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b, cen):  # pragma: no cover
+def _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b, cen, ins,
+                    fc):  # pragma: no cover - compiled
     """Points whose convex hull is primitive ``i``'s solid clipped to the box ``[lo, hi]``
     (already grown): its vertices inside, its edges' ends clipped to the box where they
     cross it, and the box's edges clipped to its faces. Returns their count (0: the solid
     misses the box). Where a face was left out (:func:`_faces`), the solid's own points:
-    the box's edges clipped to the remaining faces alone could cover far more."""
+    the box's edges clipped to the remaining faces alone could cover far more. ``ins``: a
+    buffer of ``V`` flags (which vertices are inside: an edge between two of them gives no
+    point), ``fc``: of ``(8, V + 2)`` (:func:`_corner_values`)."""
     v = cloud.shape[1]
     nb = v - na
-    nf = _faces(cloud, i, na, faces, slack, cen)
-    if nf < nb + (2 if na > 1 else 1):
-        for j in range(v):
-            for c in range(3):
-                pts[j, c] = cloud[i, j, c]
-        return v
     n = 0
     for j in range(v):
         inside = True
         for c in range(3):
             if not (lo[c] <= cloud[i, j, c] <= hi[c]):
                 inside = False
+        ins[j] = inside
         if inside:
             _vertex(cloud, i, j, a)
             n = _add(pts, n, a, a, 0.0)
+    if n == v:
+        # The whole solid in the box: it is its own clip (the box's edges could add only
+        # points of the faces' slack, outside the solid), and no face is needed.
+        return n
+    nf = _faces(cloud, i, na, faces, slack, cen)
+    if nf < nb + (2 if na > 1 else 1):
+        for j in range(v):
+            for c in range(3):
+                pts[j, c] = cloud[i, j, c]
+        return v
     # Edges: lateral (A_k, B_k), ring B (B_k, B_k+1), ring A (prism).
     for k in range(nb * 2 + (na if na > 1 else 0)):
         if k < nb:
@@ -160,6 +181,8 @@ def _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b, cen):  # prag
             e0, e1 = na + k - nb, na + (k - nb + 1) % nb
         else:
             e0, e1 = k - 2 * nb, (k - 2 * nb + 1) % na
+        if ins[e0] and ins[e1]:  # _clip_to_box gives exactly (0, 1): no point
+            continue
         _vertex(cloud, i, e0, a)
         _vertex(cloud, i, e1, b)
         t0, t1 = _clip_to_box(a, b, lo, hi)
@@ -168,13 +191,15 @@ def _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b, cen):  # prag
                 n = _add(pts, n, a, b, t0)
             if t1 < 1.0:
                 n = _add(pts, n, a, b, t1)
+    _corner_values(lo, hi, faces, nf, fc)
     for e in range(12):  # the box's edges: along axis e // 4 at the corner e % 4 of the others
         ax = e // 4
         c1, c2 = (ax + 1) % 3, (ax + 2) % 3
         a[ax], b[ax] = lo[ax], hi[ax]
         a[c1] = b[c1] = hi[c1] if e % 2 else lo[c1]
         a[c2] = b[c2] = hi[c2] if (e // 2) % 2 else lo[c2]
-        t0, t1 = _clip_to_faces(a, b, faces, nf)
+        qa = ((e % 2) << c1) | (((e // 2) % 2) << c2)  # the corners of a and b
+        t0, t1 = _clip_to_faces(fc[qa], fc[qa | (1 << ax)], nf)
         if t0 <= t1:
             n = _add(pts, n, a, b, t0)
             n = _add(pts, n, a, b, t1)
@@ -273,6 +298,8 @@ def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax,
     hy = np.empty(2 * pmax)
     pts = np.empty((pmax, 3))
     faces = np.empty((v + 2, 4))
+    ins = np.empty(v, np.bool_)
+    fc = np.empty((8, v + 2))
     a, b, cen = np.empty(3), np.empty(3), np.empty(3)
     lo, hi = np.empty(3), np.empty(3)
     for i in range(m):
@@ -287,7 +314,7 @@ def cloud_project(cloud, na, live, near, box, cam, x0, x1, y0, y1, pmax,
             slack = CLIP_SLACK * _extent(cloud, i, box[0], box[1])
             for c in range(3):
                 lo[c], hi[c] = box[0, c] - slack, box[1, c] + slack
-            n = _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b, cen)
+            n = _clipped_points(cloud, i, na, lo, hi, slack, faces, pts, a, b, cen, ins, fc)
             if n == 0:
                 continue
             for j in range(n):
