@@ -17,7 +17,7 @@ import numpy as np
 from ..binning import _NEAR, _SPAN_MARGIN, screen_rects
 from ..memo import memo
 from .cloud_spans import cloud_project, hull_width, max_points
-from .jit import kernel, scalar
+from .jit import inline, kernel, scalar
 from .projection import _project, _row_range, camera_row
 from .threads import PIECES_PER_THREAD, on_threads, thread_count
 
@@ -178,6 +178,13 @@ def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - comp
     return n, o_prim, o_row, o_c0, o_c1
 
 
+@inline
+def _put(o_prim, o_row, o_c0, o_c1, n, prim, row, c0, c1):  # pragma: no cover - compiled
+    """Span ``(prim, row, c0, c1)`` written at entry ``n``; returns ``n + 1``."""
+    o_prim[n], o_row[n], o_c0[n], o_c1[n] = prim, row, c0, c1
+    return n + 1
+
+
 @kernel(nogil=True)
 def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o_c1,
                     n):  # pragma: no cover - compiled
@@ -191,7 +198,6 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
     ``hi_y - y`` or ``y - lo_y`` decides it exactly), so the spans are the same; a cone's
     footprint of ~9 edges over ~26 rows is clipped ~2-3 times a row, not 9."""
     big = 1e30
-    w = px.shape[1]
     most = 0
     for i in range(px.shape[0]):
         most = max(most, nr[i])
@@ -204,15 +210,11 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
         if cnt < 0:  # no finite hull: the rectangle
             if x1[i] > x0[i]:
                 for row in range(ra, ra + m):
-                    o_prim[n] = p_off + i
-                    o_row[n] = row
-                    o_c0[n] = x0[i]
-                    o_c1[n] = x1[i]
-                    n += 1
+                    n = _put(o_prim, o_row, o_c0, o_c1, n, p_off + i, row, x0[i], x1[i])
             continue
         for r in range(m):
             xmin[r], xmax[r] = big, -big
-        for j in range(min(cnt, w)):
+        for j in range(cnt):
             jn = j + 1 if j + 1 < cnt else 0
             xa, ya, xb, yb = px[i, j], py[i, j], px[i, jn], py[i, jn]
             dy = yb - ya
@@ -247,11 +249,7 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
             c0 = int(max(np.floor(xmin[r] - _SPAN_MARGIN), x0[i]))
             c1 = int(min(np.floor(xmax[r] + _SPAN_MARGIN) + 1, x1[i]))
             if c1 > c0:
-                o_prim[n] = p_off + i
-                o_row[n] = ra + r
-                o_c0[n] = c0
-                o_c1[n] = c1
-                n += 1
+                n = _put(o_prim, o_row, o_c0, o_c1, n, p_off + i, ra + r, c0, c1)
     return n
 
 
