@@ -1,12 +1,23 @@
-"""What this machine gives a pass: a second thread, and memory bandwidth on one and two.
+"""What this machine gives a pass: a second thread, its execution units, and memory
+bandwidth on one and two.
 
-Two probes, each repeated in series (the spread between series is the point: a virtual
+Three probes, each repeated in series (the spread between series is the point: a virtual
 machine's second vCPU or its memory can be taken by a neighbour for seconds at a time):
 
 * **threads**: :func:`psurf_core.kernels.threads.on_threads` hands 8 pieces of ~0.125 ms of
   compiled arithmetic (no memory traffic, the GIL released) to 1 and to 2 threads, as the
   walkers and the trace hand out theirs; the median and the least wall time of ``--reps``
   hand-outs per series. Two threads should take half of one.
+* **units**: whether the two threads share one core's execution units (two hyperthreads
+  of one core, which a virtual machine's vCPUs may be though ``lscpu`` says one thread a
+  core, or whose cores the host lends to other guests). Three compiled loops, each run on
+  one thread alone and then on two threads at once (each its own copy, pinned to CPUs 0
+  and 1 where ``sched_setaffinity`` exists): eight independent multiply-add chains, the
+  same packed in vector registers (``fastmath``), and one dependent chain of square roots.
+  The slower thread's time at once over alone: ~1.0 on two cores of their own; more where
+  the two share a core's units (up to ~2 for loops that keep them busy). ``make bench``
+  records a reading before and after its headline (``out/bench.json``, ``machine.units``):
+  the same code read 3.0-3.8e7 ``planes`` hits/s a few minutes apart on this machine;
 * **memory**: a compiled loop reads one float64 array and writes another (``--mb`` MB each)
   on one thread, then two such loops on two threads at once: GB/s moved (read + write).
 
@@ -22,6 +33,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -39,6 +51,40 @@ def _busy(n):  # pragma: no cover - compiled
     for i in range(n):
         s += np.sqrt(i + 1.0)
     return s
+
+
+@numba.njit(nogil=True, cache=False)
+def _chains(n):  # pragma: no cover - compiled
+    """Eight independent multiply-add chains of ``n`` steps (throughput-bound)."""
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 1.0
+    for _ in range(n):
+        a0 = a0 * 0.9999 + 1.0
+        a1 = a1 * 0.9998 + 1.0
+        a2 = a2 * 0.9997 + 1.0
+        a3 = a3 * 0.9996 + 1.0
+        a4 = a4 * 0.9995 + 1.0
+        a5 = a5 * 0.9994 + 1.0
+        a6 = a6 * 0.9993 + 1.0
+        a7 = a7 * 0.9992 + 1.0
+    return a0 + a1 + a2 + a3 + a4 + a5 + a6 + a7
+
+
+@numba.njit(nogil=True, cache=False, fastmath=True)
+def _vector_chains(n):  # pragma: no cover - compiled
+    """:func:`_chains` with ``fastmath``: LLVM packs the eight chains into vector registers
+    (the loop that read 2x on two threads at once at 12:05 on 2026-12-07, when the scalar
+    square roots read 1.0x)."""
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 1.0
+    for _ in range(n):
+        a0 = a0 * 0.9999 + 1.0
+        a1 = a1 * 0.9998 + 1.0
+        a2 = a2 * 0.9997 + 1.0
+        a3 = a3 * 0.9996 + 1.0
+        a4 = a4 * 0.9995 + 1.0
+        a5 = a5 * 0.9994 + 1.0
+        a6 = a6 * 0.9993 + 1.0
+        a7 = a7 * 0.9992 + 1.0
+    return a0 + a1 + a2 + a3 + a4 + a5 + a6 + a7
 
 
 @numba.njit(nogil=True, cache=False)
@@ -62,6 +108,65 @@ def threads(series: int, reps: int) -> None:
             print(f"threads: series {s + 1}, {th} thread(s): 8 pieces of 0.125 ms took "
                   f"{1e3 * np.median(ts):.3f} ms (median of {reps}), least "
                   f"{1e3 * min(ts):.3f} ms")
+
+
+def _pinned(cpu, fn, n, barrier):
+    """Seconds of ``fn(n)`` on a thread of its own, pinned to ``cpu`` (where Linux allows),
+    started together with the other threads at ``barrier``."""
+    if cpu is not None:
+        os.sched_setaffinity(0, {cpu})
+    barrier.wait()
+    t = time.perf_counter()
+    fn(n)
+    return time.perf_counter() - t
+
+
+def _at_once(fn, n, cpus) -> list:
+    """Seconds of ``fn(n)`` on each of ``len(cpus)`` new threads started together."""
+    bar = threading.Barrier(len(cpus))
+    with ThreadPoolExecutor(len(cpus)) as ex:  # new threads: the pins die with them
+        return [f.result() for f in [ex.submit(_pinned, c, fn, n, bar) for c in cpus]]
+
+
+#: The two loops of the units probe: (key, compiled loop, what it is).
+_UNIT_LOOPS = (("scalar", _chains, "8 independent multiply-add chains"),
+               ("vector", _vector_chains, "the same in vector registers"),
+               ("latency", _busy, "one dependent chain (square roots)"))
+
+
+def units_reading(ms: float = 50.0) -> dict:
+    """One reading of the units probe (module docstring): per loop (``scalar``, ``vector``,
+    ``latency``), the seconds of ~``ms`` ms of it on one thread alone (``alone``), on two
+    threads at once (``both``: each thread's) and ``ratio`` = the slower of ``both`` over
+    ``alone`` (~1: two cores; up to ~2: one core's units shared)."""
+    pin = hasattr(os, "sched_setaffinity")
+    cpus = sorted(os.sched_getaffinity(0))[:2] if pin else []
+    pair = cpus if len(cpus) == 2 else [None, None]
+    out = {}
+    for key, fn, _ in _UNIT_LOOPS:
+        fn(10)
+        t = time.perf_counter()
+        fn(1_000_000)
+        n = max(int(ms * 1e-3 / ((time.perf_counter() - t) / 1e6)), 1)
+        alone = _at_once(fn, n, pair[:1])[0]
+        both = _at_once(fn, n, pair)
+        out[key] = {"alone": alone, "both": both, "ratio": max(both) / alone}
+    return out
+
+
+def units_line(reading: dict) -> str:
+    """``reading`` (:func:`units_reading`) in one line."""
+    return ", ".join(f"{k} {reading[k]['ratio']:.2f}x" for k, _, _ in _UNIT_LOOPS)
+
+
+def units(series: int) -> None:
+    for s in range(series):
+        r = units_reading()
+        for key, _, name in _UNIT_LOOPS:
+            alone, both = r[key]["alone"], r[key]["both"]
+            print(f"units: series {s + 1}, {name}: {1e3 * alone:.1f} ms alone, "
+                  f"{1e3 * both[0]:.1f} / {1e3 * both[1]:.1f} ms on two threads at once "
+                  f"({r[key]['ratio']:.2f}x)")
 
 
 def memory(series: int, mb: int) -> None:
@@ -94,6 +199,7 @@ def main(argv=None) -> int:
     print(f"# {time.strftime('%Y-%m-%d %H:%M:%S', time.gmtime())} UTC, load average "
           f"{os.getloadavg()[0]:.2f}, numba threads {numba.get_num_threads()}")
     threads(args.series, args.reps)
+    units(args.series)
     memory(args.series, args.mb)
     return 0
 

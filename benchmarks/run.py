@@ -19,6 +19,10 @@ whose compiled walkers run on numba's threads (on the cores other processes leav
 * ``photon_vertices_per_second``: Trace alone in render's batches
   (:func:`benchmarks.stages.trace_rate`; its range and first pass in ``trace``).
 
+Beside them, ``machine.units``: :func:`benchmarks.machine_probe.units_reading` before and
+after the headline, whether the two vCPUs shared one core's units then (a slower thread at
+~1.3x / 2x / 2x on the three loops, against ~1.0x on two cores of their own).
+
 Also per technique (:func:`benchmarks.stages.stage_pass`), 1 vs 2 processes, tables per
 doubling of photons and image side, and the peak RSS of a 10^6-photon pass at 256x192
 (:mod:`benchmarks.extras`).
@@ -38,7 +42,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks import bench_compare, extras  # noqa: E402
+from benchmarks import bench_compare, extras, machine_probe  # noqa: E402
 from benchmarks.stages import paired_cost_ratio, steady, trace_rate  # noqa: E402
 from psurf_core.render import PHOTON_BATCH  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
@@ -98,6 +102,12 @@ def main(argv=None) -> int:
     print(f"# {cmd}\n# {args.scene}: {scene.camera.width}x{scene.camera.height}, "
           f"{args.photons} photons per pass, one process, numba threads "
           f"{numba.get_num_threads()}, load average {os.getloadavg()[0]:.2f}")
+    # Whether the two vCPUs share one core's units now (benchmarks/machine_probe.py): the
+    # same code read 3.0-3.8e7 planes hits/s minutes apart on this machine, and the probe
+    # read 1.0x and 2.0x within a minute. Read before and after the headline, and kept.
+    units = {"before": machine_probe.units_reading()}
+    print("# two threads at once / alone (machine_probe.py's units), before: "
+          + machine_probe.units_line(units["before"]))
     results = {spec: steady(scene, spec, args.photons, args.reps)
                for spec in args.estimators.split(",")}
     for spec, r in results.items():
@@ -124,6 +134,9 @@ def main(argv=None) -> int:
               + ", ".join(f"{x:.2f}" for x in paired["each_ratio"])
               + f" (median {paired['ratio']:.2f}; from the two steady medians: "
               f"{head['hit_cost_ratio_separate_runs']:.2f})")
+    units["after"] = machine_probe.units_reading()
+    print("# two threads at once / alone (machine_probe.py's units), after: "
+          + machine_probe.units_line(units["after"]))
     print("\nheadline (median of warm passes)            measured     target")
     for spec, target in TARGETS.items():
         if spec in results:
@@ -138,7 +151,7 @@ def main(argv=None) -> int:
         "command": cmd,
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                     "numpy": np.__version__, "numba_threads": numba.get_num_threads(),
-                    "load_average": os.getloadavg()},
+                    "load_average": os.getloadavg(), "units": units},
         "scene": args.scene, "photons": args.photons, "reps": args.reps,
         "headline": head, "targets": {"hits_per_second": TARGETS, "trace": TRACE_TARGET,
                                       "hit_cost_ratio": RATIO_TARGET},
