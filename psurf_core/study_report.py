@@ -109,7 +109,10 @@ def write_compare_md(path: str, study: dict) -> None:
         f"- {study['seconds']:g} s of {study['clock']} time per run and estimator, "
         f"{study['runs']} run(s), seeds "
         f"{study['seed']}..{study['seed'] + study['runs'] - 1}",
-        f"- machine: {study['machine']['cpus']} CPUs, 1-min load average "
+        f"- machine: {study['machine']['cpus']} CPUs"
+        + (f", passes in {study['processes']} worker processes"
+           if (study.get("processes") or 1) > 1 else "")
+        + ", 1-min load average "
         f"{_g(study['machine']['load_average_start'], '.2f')} at the start, "
         f"{_g(study['machine']['load_average_end'], '.2f')} at the end (wall-clock budgets: "
         "other load shortens every run alike only if it is steady)",

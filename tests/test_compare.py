@@ -196,6 +196,15 @@ def test_cli_with_reference_file(study, tiny, tmp_path):
     # The pilot is announced as it starts and its choice completes the same line.
     assert f"planes: sizing its passes (a pilot, not timed) ... {n} photons a pass" in r.stdout
     assert data["reference"]["source"].endswith("reference.npz")
+    # --jobs auto, the default: one worker process a core (this machine's memory holds them)
+    from ui.cli.parallel import usable_cores
+
+    cores = usable_cores()
+    assert data["processes"] == cores, data["processes"]
+    if cores > 1:
+        assert f"passes in {cores} worker processes, one a core (--jobs auto" in r.stderr
+        assert f"passes in {cores} worker processes" in (tmp_path / "cli" /
+                                                         "compare.md").read_text()
     assert data["results"][0]["passes"] >= 2, data["results"][0]
     assert data["results"][0]["ratio"] == 1.0
     assert not (tmp_path / "cli" / "reference.npz").exists()  # nothing rendered for it

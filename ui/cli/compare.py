@@ -35,7 +35,7 @@ from .common import (
     with_resolution,
     with_scatter,
 )
-from .limits import check_memory, load_scene_within, probe_writable
+from .limits import check_memory, load_scene_within, probe_writable, resolve_jobs
 from .parallel import add_dask_flags
 
 #: Defaults of ``compare`` (photons per pass: small enough that the slowest photon-surface
@@ -151,7 +151,7 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                         "available)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output directory (created if missing)")
-    add_dask_flags(p)
+    add_dask_flags(p, jobs_default="auto")
     p.set_defaults(func=run_compare)
     return p
 
@@ -229,10 +229,14 @@ def _check_memory(args, scene, ests, settings, photons, render_reference: bool) 
     # Kept: the reference's mean and variance, each estimator's, and the runs' final images
     # (with their stack for the spread across runs).
     kept = 2 + 2 * len(ests) + 2 * args.runs
-    need = render_need(scene, None, None, estimators=runs, settings_list=sets, jobs=args.jobs,
-                       local_workers=args.workers or 0, remote=args.dask is not None,
-                       kept_images=kept)
-    check_memory(need, args.memory_budget, what="the comparison")
+
+    def need_of(jobs):
+        return render_need(scene, None, None, estimators=runs, settings_list=sets, jobs=jobs,
+                           local_workers=args.workers or 0, remote=args.dask is not None,
+                           kept_images=kept)
+
+    resolve_jobs(args, need_of)  # --jobs auto (the default): as many processes as fit
+    check_memory(need_of(args.jobs), args.memory_budget, what="the comparison")
 
 
 def _progress():
@@ -323,13 +327,17 @@ def run_compare(args) -> int:
         if args.clock == "cpu" and (args.dask is not None or args.workers is not None):
             raise _Bad("--clock cpu measures this process only; use --clock wall with "
                        f"--{'dask' if args.dask is not None else 'workers'}")
-        if args.clock == "cpu" and args.jobs > 1:
+        if args.clock == "cpu" and args.jobs != "auto" and args.jobs > 1:
             raise _Bad("--clock cpu measures this process only; use --clock wall with --jobs")
         if len(args.photons) not in (1, len(ests)):
             raise _Bad(f"--photons: give one count or one per estimator ({len(ests)}), got "
                        f"{len(args.photons)}")
         photons = args.photons * len(ests) if len(args.photons) == 1 else args.photons
+        auto = args.jobs == "auto"
         _check_memory(args, scene, ests, settings, photons, reference is None)
+        if auto and args.jobs > 1:
+            print(f"{PROG}: note: passes in {args.jobs} worker processes, one a core (--jobs "
+                  "auto; --jobs 1 runs them in this process)", file=sys.stderr)
         _out_dir(args.out)
     except (_Bad, CliError) as e:
         return fail(str(e))
@@ -371,6 +379,7 @@ def run_compare(args) -> int:
     finally:
         close()
 
+    study["processes"] = args.jobs if args.dask is None and args.workers is None else None
     try:
         written = st.write_outputs(args.out, study)
         if study["reference"]["source"] == "render":

@@ -19,7 +19,7 @@ from .common import CliError
 from .common import load_scene as _load_scene
 
 __all__ = ["check_disk", "check_memory", "check_render_sizes", "load_scene_within",
-           "probe_writable"]
+           "probe_writable", "resolve_jobs"]
 
 
 def load_scene_within(path: str, budget_mib: int | None, flag: str = "--memory-budget"):
@@ -41,6 +41,27 @@ def check_memory(need, budget_mib: int | None, **kw) -> None:
         check(need, budget_mib, **kw)
     except BudgetError as e:
         raise CliError(str(e)) from None
+
+
+def resolve_jobs(args, need_of) -> None:
+    """``args.jobs`` ``"auto"`` replaced by its count (:func:`.parallel.auto_jobs`): the most
+    worker processes, up to one a core, whose memory need ``need_of(n)`` (a
+    :class:`~psurf_core.budget.Need`) fits ``--memory-budget`` or the memory available."""
+    from psurf_core.budget_check import BudgetError, check
+
+    from .parallel import auto_jobs
+
+    if args.jobs != "auto":
+        return
+
+    def fits(n: int) -> bool:
+        try:
+            check(need_of(n), args.memory_budget)
+        except BudgetError:
+            return False
+        return True
+
+    args.jobs = auto_jobs(args, fits)
 
 
 def probe_writable(flag: str, path: str, folder: str) -> None:
@@ -91,9 +112,13 @@ def check_render_sizes(args, scene, est, settings, ck_dir, ck):
 
     from .checkpoint import same_dir
 
-    need = budget.render_need(scene, est, settings, jobs=args.jobs,
-                              local_workers=args.workers or 0, remote=args.dask is not None,
-                              checkpoint=ck_dir is not None)
+    def need_of(jobs):
+        return budget.render_need(scene, est, settings, jobs=jobs,
+                                  local_workers=args.workers or 0, remote=args.dask is not None,
+                                  checkpoint=ck_dir is not None)
+
+    resolve_jobs(args, need_of)
+    need = need_of(args.jobs)
     check_memory(need, args.memory_budget)
     folder = os.path.dirname(os.path.abspath(args.out))
     disk = [("--out", args.out, folder, budget.output_bytes(scene))]

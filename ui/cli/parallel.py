@@ -10,6 +10,7 @@ Nothing of Dask is imported unless ``--dask``/``--workers`` is given (the cluste
 from __future__ import annotations
 
 import argparse
+import os
 
 from .common import note, positive_int
 
@@ -29,8 +30,46 @@ def _address(text: str) -> str:
     return text.strip()
 
 
-def add_dask_flags(parser: argparse.ArgumentParser) -> None:
-    """``--dask ADDRESS`` / ``--workers N`` (mutually exclusive) on ``parser``."""
+def jobs_count(text: str):
+    """``--jobs``: a positive count, or ``auto`` (:func:`auto_jobs`)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return positive_int(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"must be an integer > 0 or 'auto', got {text!r}"
+                                         ) from None
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system tells it)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def auto_jobs(args, fits) -> int:
+    """What ``--jobs auto`` means for ``args``: one worker process a core this process may use
+    (:func:`usable_cores`), fewer where ``fits(n)`` (the run's memory need with ``n``
+    processes within the budget) says ``n`` would not fit; 1 (passes in this process) on one
+    core, with ``--dask``/``--workers``, or with ``--clock cpu`` (which measures this process
+    alone). Whole passes in processes use the cores where threads leave one idle: each
+    pass's Create (numpy) and image accumulation run on one thread (``compare``'s runs used
+    ~1.55 of 2 cores, docs/study.md)."""
+    if getattr(args, "dask", None) is not None or getattr(args, "workers", None) is not None:
+        return 1
+    if getattr(args, "clock", "wall") == "cpu":
+        return 1
+    for n in range(usable_cores(), 1, -1):
+        if fits(n):
+            return n
+    return 1
+
+
+def add_dask_flags(parser: argparse.ArgumentParser, jobs_default="1") -> None:
+    """``--dask ADDRESS`` / ``--workers N`` / ``--jobs N`` (mutually exclusive) on
+    ``parser``; ``jobs_default`` is ``"1"`` or ``"auto"`` (:func:`auto_jobs`)."""
     g = parser.add_argument_group("parallel passes (local processes or Dask; default: one "
                                   "process, no Dask)")
     x = g.add_mutually_exclusive_group()
@@ -41,10 +80,13 @@ def add_dask_flags(parser: argparse.ArgumentParser) -> None:
     x.add_argument("--workers", type=positive_int, default=None, metavar="N",
                    help="start a local Dask cluster of N single-threaded worker processes on "
                         "127.0.0.1 for this command")
-    x.add_argument("--jobs", type=positive_int, default=1, metavar="N",
+    x.add_argument("--jobs", type=jobs_count, default=jobs_count(jobs_default),
+                   metavar="N|auto",
                    help="run passes in N local worker processes (no Dask; e.g. 2 on a 2-core "
-                        "machine); merged in pass order, so the image equals a "
-                        "single-process run with as many passes (default 1: this process)")
+                        "machine); 'auto': one a core, as many as the memory holds; merged in "
+                        "pass order, so the image equals a single-process run with as many "
+                        f"passes (default {jobs_default}"
+                        + (": this process)" if jobs_default == "1" else ")"))
 
 
 def maybe_distributed(args, scene, estimator, settings, *, passes=None, time_budget=None,
