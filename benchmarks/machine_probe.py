@@ -134,6 +134,13 @@ _UNIT_LOOPS = (("scalar", _chains, "8 independent multiply-add chains"),
                ("latency", _busy, "one dependent chain (square roots)"))
 
 
+#: Steps of each units loop a millisecond took, about, alone on this machine (2026-12-07,
+#: the least of five): a reading runs a fixed number of steps so that its ``alone`` time
+#: shows the machine's speed too (the same code's single-thread ``planes`` hit read 46 and
+#: 61 CPU ns minutes apart).
+_STEPS_PER_MS = {"scalar": 1e6 / 1.72, "vector": 1e6 / 0.271, "latency": 1e6 / 2.32}
+
+
 def units_reading(ms: float = 50.0) -> dict:
     """One reading of the units probe (module docstring): per loop (``scalar``, ``vector``,
     ``latency``), the seconds of ~``ms`` ms of it on one thread alone (``alone``), on two
@@ -145,9 +152,7 @@ def units_reading(ms: float = 50.0) -> dict:
     out = {}
     for key, fn, _ in _UNIT_LOOPS:
         fn(10)
-        t = time.perf_counter()
-        fn(1_000_000)
-        n = max(int(ms * 1e-3 / ((time.perf_counter() - t) / 1e6)), 1)
+        n = int(ms * _STEPS_PER_MS[key])  # the same work every reading: the time is the speed
         alone = _at_once(fn, n, pair[:1])[0]
         both = _at_once(fn, n, pair)
         out[key] = {"alone": alone, "both": both, "ratio": max(both) / alone}
@@ -155,8 +160,10 @@ def units_reading(ms: float = 50.0) -> dict:
 
 
 def units_line(reading: dict) -> str:
-    """``reading`` (:func:`units_reading`) in one line."""
-    return ", ".join(f"{k} {reading[k]['ratio']:.2f}x" for k, _, _ in _UNIT_LOOPS)
+    """``reading`` (:func:`units_reading`) in one line: per loop its time alone (the same
+    work each reading: a slower machine reads more) and the ratio."""
+    return ", ".join(f"{k} {1e3 * reading[k]['alone']:.1f} ms alone, {reading[k]['ratio']:.2f}x"
+                     for k, _, _ in _UNIT_LOOPS)
 
 
 def units(series: int) -> None:
