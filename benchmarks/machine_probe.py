@@ -17,7 +17,7 @@ machine's second vCPU or its memory can be taken by a neighbour for seconds at a
   The slower thread's time at once over alone: ~1.0 on two cores of their own; more where
   the two share a core's units (up to ~2 for loops that keep them busy). ``make bench``
   records a reading before and after its headline (``out/bench.json``, ``machine.units``):
-  the same code read 3.0-3.8e7 ``planes`` hits/s a few minutes apart on this machine;
+  the same code read 2.8-3.8e7 ``planes`` hits/s a few minutes apart on this machine;
 * **memory**: a compiled loop reads one float64 array and writes another (``--mb`` MB each)
   on one thread, then two such loops on two threads at once: GB/s moved (read + write).
 
@@ -128,7 +128,7 @@ def _at_once(fn, n, cpus) -> list:
         return [f.result() for f in [ex.submit(_pinned, c, fn, n, bar) for c in cpus]]
 
 
-#: The two loops of the units probe: (key, compiled loop, what it is).
+#: The three loops of the units probe: (key, compiled loop, what it is).
 _UNIT_LOOPS = (("scalar", _chains, "8 independent multiply-add chains"),
                ("vector", _vector_chains, "the same in vector registers"),
                ("latency", _busy, "one dependent chain (square roots)"))
@@ -143,7 +143,8 @@ _STEPS_PER_MS = {"scalar": 1e6 / 1.72, "vector": 1e6 / 0.271, "latency": 1e6 / 2
 
 def units_reading(ms: float = 50.0) -> dict:
     """One reading of the units probe (module docstring): per loop (``scalar``, ``vector``,
-    ``latency``), the seconds of ~``ms`` ms of it on one thread alone (``alone``), on two
+    ``latency``), the seconds of a fixed number of its steps (``ms`` ms' worth on this
+    machine at its fastest, :data:`_STEPS_PER_MS`) on one thread alone (``alone``), on two
     threads at once (``both``: each thread's) and ``ratio`` = the slower of ``both`` over
     ``alone`` (~1: two cores; up to ~2: one core's units shared)."""
     pin = hasattr(os, "sched_setaffinity")

@@ -103,7 +103,7 @@ def main(argv=None) -> int:
           f"{args.photons} photons per pass, one process, numba threads "
           f"{numba.get_num_threads()}, load average {os.getloadavg()[0]:.2f}")
     # Whether the two vCPUs share one core's units now (benchmarks/machine_probe.py): the
-    # same code read 3.0-3.8e7 planes hits/s minutes apart on this machine, and the probe
+    # same code read 2.8-3.8e7 planes hits/s minutes apart on this machine, and the probe
     # read 1.0x and 2.0x within a minute. Read before and after the headline, and kept.
     units = {"before": machine_probe.units_reading()}
     print("# two threads at once / alone (machine_probe.py's units), before: "

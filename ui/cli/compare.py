@@ -214,7 +214,9 @@ def _out_dir(path: str) -> None:
 
 def _check_memory(args, scene, ests, settings, photons, render_reference: bool) -> None:
     """The largest estimator's pass work and every image the study keeps, against
-    --memory-budget (or the memory available), before anything renders."""
+    --memory-budget (or the memory available), before anything renders; ``--jobs auto``
+    (the default) is first replaced by the most worker processes whose need fits
+    (:func:`~ui.cli.limits.resolve_jobs`)."""
     from dataclasses import replace
 
     from psurf_core.budget import render_need
