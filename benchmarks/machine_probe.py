@@ -53,9 +53,8 @@ def _busy(n):  # pragma: no cover - compiled
     return s
 
 
-@numba.njit(nogil=True, cache=False)
-def _chains(n):  # pragma: no cover - compiled
-    """Eight independent multiply-add chains of ``n`` steps (throughput-bound)."""
+def _chain_steps(n):  # pragma: no cover - compiled
+    """Eight independent multiply-add chains of ``n`` steps."""
     a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 1.0
     for _ in range(n):
         a0 = a0 * 0.9999 + 1.0
@@ -69,22 +68,11 @@ def _chains(n):  # pragma: no cover - compiled
     return a0 + a1 + a2 + a3 + a4 + a5 + a6 + a7
 
 
-@numba.njit(nogil=True, cache=False, fastmath=True)
-def _vector_chains(n):  # pragma: no cover - compiled
-    """:func:`_chains` with ``fastmath``: LLVM packs the eight chains into vector registers
-    (the loop that read 2x on two threads at once at 12:05 on 2026-12-07, when the scalar
-    square roots read 1.0x)."""
-    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 1.0
-    for _ in range(n):
-        a0 = a0 * 0.9999 + 1.0
-        a1 = a1 * 0.9998 + 1.0
-        a2 = a2 * 0.9997 + 1.0
-        a3 = a3 * 0.9996 + 1.0
-        a4 = a4 * 0.9995 + 1.0
-        a5 = a5 * 0.9994 + 1.0
-        a6 = a6 * 0.9993 + 1.0
-        a7 = a7 * 0.9992 + 1.0
-    return a0 + a1 + a2 + a3 + a4 + a5 + a6 + a7
+#: The chains as scalar code, and with ``fastmath``, where LLVM packs them into vector
+#: registers (the loop that read 2x on two threads at once at 12:05 on 2026-12-07, when the
+#: square roots read 1.0x).
+_chains = numba.njit(nogil=True, cache=False)(_chain_steps)
+_vector_chains = numba.njit(nogil=True, cache=False, fastmath=True)(_chain_steps)
 
 
 @numba.njit(nogil=True, cache=False)
