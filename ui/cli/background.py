@@ -28,6 +28,7 @@ make a :class:`Priority` and lower it after its first result (what the window wa
 from __future__ import annotations
 
 import multiprocessing as mp
+import multiprocessing.connection
 import queue as _queue
 import signal
 import threading
@@ -213,10 +214,19 @@ class Workers:
             except (OSError, ValueError):
                 self._broken.add(i)
 
-    def get(self):
-        """One result message from any worker, or None when none is waiting (a message that
-        has begun arriving is read whole; a worker that dies meanwhile ends it as a broken
-        pipe, reported by :meth:`deaths`)."""
+    def get(self, timeout: float = 0.0):
+        """One result message from any worker, or None when none is waiting, after waiting
+        up to ``timeout`` seconds for one to begin (a message that has begun arriving is read
+        whole; a worker that dies meanwhile ends it as a broken pipe, reported by
+        :meth:`deaths`)."""
+        msg = self._get_ready()
+        if msg is None and timeout > 0:
+            live = [c for i, c in enumerate(self.results) if i not in self._broken]
+            if live and mp.connection.wait(live, timeout):
+                msg = self._get_ready()
+        return msg
+
+    def _get_ready(self):
         n = len(self.results)
         for k in range(n):
             i = (self._next + k) % n

@@ -89,6 +89,8 @@ __all__ = ["COMPILE_NOTE_AFTER", "EstimatorRun", "Job", "Progressive", "ShownBre
 QUEUE_SIZE = 6
 #: Seconds ``poll`` spends at most unpacking results (keeps the UI frame short).
 POLL_BUDGET = 0.03
+#: Seconds ``poll`` waits, after a result, for the next one a worker is sending.
+STREAM_WAIT = 0.005
 #: A warm-up that took this many CPU seconds was a compilation (a busy machine stretches wall
 #: time, not CPU time); see also ``estimator_run.COMPILE_NOTE_AFTER``.
 COMPILE_CPU = 4.0
@@ -352,8 +354,13 @@ class Progressive:
             return 0
         got = 0
         t0 = time.perf_counter()
-        while time.perf_counter() - t0 < budget:
-            msg = self._pool.get()
+        while (left := budget - (time.perf_counter() - t0)) > 0:
+            # After a message, wait a little for the next: a worker's outbox sends its
+            # buffered results one after another, and the next is rarely there the instant
+            # the last is read (returning then merged ~2 results a 200 ms tick, and the
+            # worker, held back by its full buffer, rendered ~20 % of the time: docs/study.md,
+            # "The window's worker waited for the UI").
+            msg = self._pool.get(min(left, STREAM_WAIT) if got else 0.0)
             if msg is None:
                 break
             if msg[1] != self._gen:
