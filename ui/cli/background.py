@@ -28,11 +28,11 @@ make a :class:`Priority` and lower it after its first result (what the window wa
 from __future__ import annotations
 
 import multiprocessing as mp
-import multiprocessing.connection
 import queue as _queue
 import signal
 import threading
 import time
+from multiprocessing.connection import wait as _wait_any
 
 __all__ = ["WORKER_NICE", "Inbox", "Outbox", "Priority", "Workers", "describe_exit",
            "lower_priority"]
@@ -222,7 +222,7 @@ class Workers:
         msg = self._get_ready()
         if msg is None and timeout > 0:
             live = [c for i, c in enumerate(self.results) if i not in self._broken]
-            if live and mp.connection.wait(live, timeout):
+            if live and _wait_any(live, timeout):
                 msg = self._get_ready()
         return msg
 
