@@ -45,7 +45,7 @@ def wrap(obj, name, key):
 
 wrap(kf._Run, "spans", "spans")
 wrap(kf._Run, "walk_chunk", "walk_chunk")
-wrap(kf, "span_candidates", "span_candidates")
+wrap(kf, "spans_before", "spans_before")
 wrap(kf, "accumulate", "accumulate")
 wrap(kf, "add_images", "add_images")
 tech = est.sets[0][0][0]

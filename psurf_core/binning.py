@@ -131,9 +131,13 @@ def candidate_pairs(
 def _chunk_bounds(sizes: np.ndarray, budget: int) -> list[int]:
     """Boundaries ``[0, ..., len(sizes)]`` of consecutive runs whose ``sizes`` sum to at most
     ``budget`` (a single larger item makes a run of its own)."""
-    cum = np.cumsum(sizes)
+    return chunk_bounds_cum(np.cumsum(sizes), budget)
+
+
+def chunk_bounds_cum(cum: np.ndarray, budget: int) -> list[int]:
+    """:func:`_chunk_bounds` from the running sums ``cum = np.cumsum(sizes)``."""
     bounds = [0]
-    while bounds[-1] < sizes.size:
+    while bounds[-1] < cum.size:
         base = cum[bounds[-1] - 1] if bounds[-1] > 0 else 0
         nxt = int(np.searchsorted(cum, base + budget, side="right"))
         bounds.append(max(nxt, bounds[-1] + 1))

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..binning import _chunk_bounds, _spans, screen_rects
+from ..binning import _spans, chunk_bounds_cum, screen_rects
 from ..constants import BYTES_PER_PAIR
 from ..interrupt import check
 from ..memo import memo
@@ -178,7 +178,10 @@ class _Run:
         self.weighted = weighted  # the walker computes the MIS weights
         self.add_emitted = False  # see fused_pass
         c = np.ascontiguousarray
-        lights = _photon_lights(paths, ctx.scene)
+        # The photons' light records are read by the MIS weight alone (``photon_row``): a
+        # technique alone, or a set weighted by the caller, gets none (building the table
+        # took ~0.24 ms of a 17 ms ``planes`` pass at 64x48).
+        lights = _photon_lights(paths, ctx.scene) if weighted else _NO_LIGHTS
         # The walker's constant arguments after the span range (its signature, in order).
         origin = np.zeros(3) if origin is None else origin  # (unread: rays' own origins)
         self.const = (int(ctx.scene.camera.width), cs, flat(rt), rid, origin,
@@ -205,16 +208,17 @@ class _Run:
             return
         spans = tuple(np.ascontiguousarray(a, np.int64) for a in spans)
         s_prim, s_row, s_c0, s_c1 = spans
-        cand = span_candidates(self.cs, s_row, s_c0, s_c1, int(self.ctx.scene.camera.width))
         # Chunks as binning's (pixels x the most rays in a pixel, within the chunk's pairs).
         per_pix = max(int(np.diff(self.cs).max()), 1)
-        bounds = _chunk_bounds((s_c1 - s_c0) * per_pix, self.chunk_pairs())
+        before, slots = spans_before(self.cs, s_row, s_c0, s_c1,
+                                     int(self.ctx.scene.camera.width), per_pix)
+        bounds = chunk_bounds_cum(slots[1:], self.chunk_pairs())
         threads = thread_count()
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             check()  # a held Ctrl-C (interrupt.held): between chunks
-            n_cand = int(cand[a:b].sum())
+            n_cand = int(before[b] - before[a])
             th = threads if n_cand >= THREADED_MIN_PAIRS else 1
-            res = self.walk_chunk(spans, cand, a, b, th, out)
+            res = self.walk_chunk(spans, before, a, b, th, out)
             if self.stats is not None:
                 st = self.stats
                 st["candidates"] = st.get("candidates", 0) + n_cand
@@ -232,22 +236,26 @@ class _Run:
         budget = min(self.ctx.max_pairs * BYTES_PER_PAIR, CHUNK_BYTES)
         return max(self.ctx.max_pairs, budget // row)
 
-    def walk_chunk(self, spans, cand, a, b, threads, out=None):
+    def walk_chunk(self, spans, before, a, b, threads, out=None):
         """Run the walker over spans ``a .. b - 1`` on ``threads`` threads: in
         :data:`CHUNK_PIECES` pieces of equal candidate pairs (one below
         ``THREADED_MIN_PAIRS``), each writing its own region of the outputs. Without
         ``emit``, where the pieces' images hold fewer cells than the chunk's compact rows
         would (``to_img``; so on all but large images), each piece adds its hits to its own
-        image (the first to ``out``), added to ``out`` in order; else to compact rows."""
+        image (the first to ``out``), added to ``out`` in order; else to compact rows.
+        ``before``: (S + 1,) the candidate pairs before each span (:func:`spans_before`)."""
         # Candidate pairs before each span of the chunk: the pieces' cut and their row ranges.
-        cum = np.concatenate([[0], np.cumsum(cand[a:b])])
-        if cum[-1] < THREADED_MIN_PAIRS:
+        base = int(before[a])
+        total = int(before[b]) - base
+        if total < THREADED_MIN_PAIRS:
             cut = [a, b]
         else:
+            # (base + total * j / k is exact in float64: j / k is a binary fraction)
             k = CHUNK_PIECES
+            at = base + total * np.arange(1, k) / k
             cut = np.unique(np.concatenate(
-                [[a], a + np.searchsorted(cum[1:], cum[-1] * np.arange(1, k) / k), [b]])).tolist()
-        off = (cum[np.asarray(cut) - a] * self.fam.n_roots).astype(np.int64)
+                [[a], a + np.searchsorted(before[a + 1:b + 1], at), [b]])).tolist()
+        off = ((before[np.asarray(cut)] - base) * self.fam.n_roots).astype(np.int64)
         pieces = len(cut) - 1
         n_rays = len(self.rays)
         to_img = (pieces - 1) * n_rays <= int(off[-1])
@@ -320,15 +328,28 @@ def add_images(out, images) -> None:
 
 
 @kernel
-def span_candidates(cs, s_row, s_c0, s_c1, width):  # pragma: no cover - compiled
-    """(S,) int64: candidate ray-primitive pairs of each span, the rays of its pixels
-    ``cs[row * width + c1] - cs[row * width + c0]`` (numpy's two gathers took ~1.8 ms of a
-    30 ms ``planes`` pass: 155k spans at 64x48)."""
-    out = np.empty(s_row.shape[0], np.int64)
-    for i in range(s_row.shape[0]):
+def spans_before(cs, s_row, s_c0, s_c1, width, per_pix):  # pragma: no cover - compiled
+    """What comes before each span, in one loop over them (numpy's gathers and sums took
+    ~0.8 ms of a ``planes`` pass at 64x48, between its spans and its walk, on one core):
+
+    Returns
+    -------
+    before : (S + 1,) int64
+        Candidate ray-primitive pairs of spans ``0 .. i - 1``, a span's the rays of its
+        pixels ``cs[row * width + c1] - cs[row * width + c0]``.
+    slots : (S + 1,) int64
+        The same of binning's chunk sizes, ``(c1 - c0) * per_pix``.
+    """
+    n = s_row.shape[0]
+    before = np.empty(n + 1, np.int64)
+    slots = np.empty(n + 1, np.int64)
+    before[0] = 0
+    slots[0] = 0
+    for i in range(n):
         b = s_row[i] * width
-        out[i] = cs[b + s_c1[i]] - cs[b + s_c0[i]]
-    return out
+        before[i + 1] = before[i] + cs[b + s_c1[i]] - cs[b + s_c0[i]]
+        slots[i + 1] = slots[i] + (s_c1[i] - s_c0[i]) * per_pix
+    return before, slots
 
 
 #: Full rows: ray, prim (int64), s; [the hit record]; value (3), weight, statuses (3 int8).
@@ -338,6 +359,10 @@ _FULL_TAIL = ((np.float64, 3), (np.float64, 1), (np.int8, 3))
 _COMPACT = ((np.int64, 1), (np.float64, 3))
 #: A piece's own image: per ray, the weighted values' sum (3).
 _IMAGE = ((np.float64, 3),)
+
+
+#: The photon table of a walk that reads none (:class:`_Run`).
+_NO_LIGHTS = np.zeros((0, 1))
 
 
 def _photon_lights(paths, scene):
