@@ -81,6 +81,31 @@ def test_compiled_screen_rects_equal_binning():
             np.testing.assert_array_equal(g, w)
 
 
+def test_spans_before_counts_each_spans_rays_and_chunk_slots():
+    """``fused.spans_before``: the running sums of each span's candidate pairs (the rays of
+    its pixels, ``cs[row * width + c1] - cs[row * width + c0]``) and of binning's chunk
+    sizes ``(c1 - c0) * per_pix``, from 0; and the chunk boundaries taken from those sums are
+    binning's own (``_chunk_bounds`` of the sizes)."""
+    from psurf_core.binning import _chunk_bounds, chunk_bounds_cum
+    from psurf_core.kernels.fused import spans_before
+
+    rng = np.random.default_rng(3)
+    width, height, per_pix = 17, 11, 3
+    cs = np.concatenate([[0], np.cumsum(rng.integers(0, per_pix + 1, width * height))])
+    n = 400
+    row = rng.integers(0, height, n)
+    c0 = rng.integers(0, width, n)
+    c1 = np.minimum(c0 + rng.integers(0, 6, n), width)
+    before, slots = spans_before(cs, row, c0, c1, width, per_pix)
+    cand = cs[row * width + c1] - cs[row * width + c0]
+    np.testing.assert_array_equal(before, np.concatenate([[0], np.cumsum(cand)]))
+    sizes = (c1 - c0) * per_pix
+    np.testing.assert_array_equal(slots, np.concatenate([[0], np.cumsum(sizes)]))
+    assert cand.min() == 0 and cand.max() > 5  # empty and full spans both drawn
+    for budget in (1, 7, 50, 10**9):
+        assert chunk_bounds_cum(slots[1:], budget) == _chunk_bounds(sizes, budget)
+
+
 def test_ctrl_c_inside_a_kernel_stays_a_keyboard_interrupt():
     """A SIGINT handled while numba boxes a result arrives as a chain of SystemErrors caused
     by the KeyboardInterrupt (seen with ``render --checkpoint``); the compiled paths turn it
