@@ -22,6 +22,7 @@ per-ray sums directly and materializes no hits.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -289,7 +290,10 @@ class _Run:
                     to_img=to_img, n_rays=n_rays, compact_rows=bool(rows) and out is not None)
 
     def full_fields(self):
-        return (*_FULL_HEAD, (np.float64, sum(widths(self.fam.hit))), *_FULL_TAIL)
+        """The full rows' fields (:data:`_FULL_HEAD`, the hit record, :data:`_FULL_TAIL`),
+        built once a family: every chunk asks (``records.widths`` reads the record's fields
+        in Python: ~0.07 ms of a 17 ms ``planes`` pass when built each time)."""
+        return _full_fields(self.fam.hit)
 
     def finish(self, res, out):
         """The full rows of a chunk (``emit``) as Hits, pieces closed up in order; with
@@ -352,6 +356,12 @@ def spans_before(cs, s_row, s_c0, s_c1, width, per_pix):  # pragma: no cover - c
         before[i + 1] = before[i] + cs[b + s_c1[i]] - cs[b + s_c0[i]]
         slots[i + 1] = slots[i] + (s_c1[i] - s_c0[i]) * per_pix
     return before, slots
+
+
+@functools.cache
+def _full_fields(hit) -> tuple:
+    """:meth:`_Run.full_fields` of a family whose hit record is ``hit``."""
+    return (*_FULL_HEAD, (np.float64, sum(widths(hit))), *_FULL_TAIL)
 
 
 #: Full rows: ray, prim (int64), s; [the hit record]; value (3), weight, statuses (3 int8).
