@@ -57,7 +57,7 @@ from . import trace_shadow as shadow
 from .kernels.buffers import HitBuffers
 from .kernels.jit import kernel, twin
 from .kernels.shadow import BlockerRow
-from .kernels.threads import PIECES_PER_THREAD, in_pieces, on_threads, thread_count
+from .kernels.threads import PIECES_PER_THREAD, guided_cut, in_pieces, on_threads, thread_count
 from .photon_sampler import uniforms
 from .records import load
 from .trace_buffers import REC_CLIP, REC_T, REC_W
@@ -368,8 +368,8 @@ def _steps(m: int, threads: int, args: tuple, state: tuple, near: tuple) -> tupl
     """
     if threads <= 1 or m < threads * STEP_MIN:
         return step(0, m, *args)
-    n_pieces = threads * PIECES_PER_THREAD
-    cut = [m * i // n_pieces for i in range(n_pieces + 1)]
+    cut = guided_cut(m, threads * PIECES_PER_THREAD)
+    n_pieces = len(cut) - 1
     ends = [(0, 0)] * n_pieces
 
     def piece(j):

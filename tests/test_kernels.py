@@ -211,6 +211,28 @@ def test_pieces_handed_out_from_a_helper_thread_run_there():
     assert small == [(0, 15)]
 
 
+def test_guided_cuts_cover_the_range_large_pieces_first():
+    """``guided_cut`` covers ``0 .. n - 1`` in consecutive non-empty ranges, each at most
+    the one before it (the last ``GUIDED_RATIO ** (k - 1)`` of the first, to a range's
+    rounding), ``k`` of them where ``n`` is large (an empty range is dropped); the walker's fixed chunk cut
+    (``fused.CHUNK_CUT``) runs from 0 to 1 with shrinking pieces."""
+    from psurf_core.kernels import fused, threads
+
+    for n, k in ((1001, 8), (100_000, 12), (5, 8), (8, 8), (1, 3)):
+        cut = threads.guided_cut(n, k)
+        size = np.diff(cut)
+        assert cut[0] == 0 and cut[-1] == n and (size > 0).all(), (n, k)
+        assert len(size) <= k, (n, k)
+        if n >= 100 * k:
+            assert len(size) == k, (n, k)
+            assert (size[1:] <= size[:-1] + 1).all(), (n, k)
+            want = threads.GUIDED_RATIO ** (k - 1)
+            assert abs(size[-1] / size[0] - want) < 0.01, (n, k)
+    f = fused.CHUNK_CUT
+    assert f[0] == 0.0 and f[-1] == 1.0 and len(f) == fused.CHUNK_PIECES + 1
+    assert (np.diff(np.diff(f)) < 0).all()
+
+
 def test_a_time_budget_warms_the_kernels_up_first_without_changing_the_image(monkeypatch):
     """``render(time_budget=...)`` compiles/loads the kernels before its clock starts (a cold
     numba compile took the whole 1 s budget of an equal-time comparison on CI), through a

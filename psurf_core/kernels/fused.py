@@ -40,7 +40,7 @@ from .mis import member_params, weight_of
 from .rays import ray_table
 from .shadow import shadow_args
 from .spans import hull_spans
-from .threads import on_threads, thread_count
+from .threads import guided_fractions, on_threads, thread_count
 from .walk import accumulate, walker
 
 #: Candidate pairs from which a chunk is shared among threads (below, handing the work out
@@ -55,13 +55,17 @@ THREADED_MIN_PAIRS = 20_000
 #: photons is one chunk instead of two (docs/study.md, "Each piece its own image").
 CHUNK_BYTES = 128 << 20
 
-#: Pieces a chunk of at least ``THREADED_MIN_PAIRS`` candidate pairs is cut into (equal
-#: candidate pairs each), handed to whichever thread is free. Where the image is small
+#: Pieces a chunk of at least ``THREADED_MIN_PAIRS`` candidate pairs is cut into (by
+#: candidate pairs, at :data:`CHUNK_CUT`: large pieces first), handed to whichever thread is
+#: free. Where the image is small
 #: beside the chunk (:meth:`_Run.walk_chunk`), each piece adds its hits to an image of its
 #: own (the first piece to the pass's), and those are added to the pass's in piece order:
 #: the image's bits depend on the cut, so the count is fixed, never the thread count, and a
 #: pass that emits its hits adds them the same way (:meth:`_Run.finish`).
-CHUNK_PIECES = 8
+CHUNK_PIECES = 12
+#: Where the pieces of a chunk end, as fractions of its candidate pairs
+#: (:func:`~.threads.guided_fractions`; fixed, so that the image's bits are).
+CHUNK_CUT = guided_fractions(CHUNK_PIECES)
 
 _BUFFERS = HitBuffers()
 
@@ -239,7 +243,8 @@ class _Run:
 
     def walk_chunk(self, spans, before, a, b, threads, out=None):
         """Run the walker over spans ``a .. b - 1`` on ``threads`` threads: in
-        :data:`CHUNK_PIECES` pieces of equal candidate pairs (one below
+        :data:`CHUNK_PIECES` pieces, large first, cut at :data:`CHUNK_CUT` of its candidate
+        pairs (one below
         ``THREADED_MIN_PAIRS``), each writing its own region of the outputs. Without
         ``emit``, where the pieces' images hold fewer cells than the chunk's compact rows
         would (``to_img``; so on all but large images), each piece adds its hits to its own
@@ -251,9 +256,7 @@ class _Run:
         if total < THREADED_MIN_PAIRS:
             cut = [a, b]
         else:
-            # (base + total * j / k is exact in float64: j / k is a binary fraction)
-            k = CHUNK_PIECES
-            at = base + total * np.arange(1, k) / k
+            at = base + total * CHUNK_CUT[1:-1]
             cut = np.unique(np.concatenate(
                 [[a], a + np.searchsorted(before[a + 1:b + 1], at), [b]])).tolist()
         off = ((before[np.asarray(cut)] - base) * self.fam.n_roots).astype(np.int64)

@@ -19,7 +19,7 @@ from ..memo import memo
 from .cloud_spans import cloud_project, hull_width, max_points
 from .jit import inline, kernel, scalar
 from .projection import _project, _row_range, camera_row
-from .threads import PIECES_PER_THREAD, on_threads, thread_count
+from .threads import PIECES_PER_THREAD, guided_cut, on_threads, thread_count
 
 
 @scalar
@@ -325,7 +325,7 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
                             prim, row, c0, c1, n)
             _WARM.append(True)
         return prim[:n], row[:n], c0[:n], c1[:n]
-    cut = np.linspace(0, m, threads * PIECES_PER_THREAD + 1).astype(np.int64).tolist()
+    cut = guided_cut(m, threads * PIECES_PER_THREAD)
     parts = [None] * (len(cut) - 1)
 
     def project(j):  # screen rectangles, clipped and projected hulls, rows per primitive

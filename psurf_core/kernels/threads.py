@@ -14,16 +14,43 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 from numba import get_num_threads
 
 from ..interrupt import check
 
-#: Pieces per thread a shared job is cut into (hull spans: equal primitives each; the
-#: tracer's batches), handed out in order to whichever thread is free: a thread that loses
+#: Pieces per thread a shared job is cut into (hull spans, the tracer's steps: by
+#: :func:`guided_cut`), handed out in order to whichever thread is free: a thread that loses
 #: its core to another process does not hold the others back by more than one piece. (A
 #: walker's chunk is cut into a fixed ``fused.CHUNK_PIECES``: its image's bits depend on the
 #: cut.)
 PIECES_PER_THREAD = 4
+
+#: Each piece of a shared job is this fraction of the one before it (:func:`guided_cut`):
+#: large pieces first, small ones last, so that the thread that takes the last piece keeps
+#: the other waiting for little. Equal pieces leave a slow thread's last one to wait for: on
+#: this machine one vCPU often runs 1.3x slower than the other (its core's other half busy
+#: elsewhere), and a ``planes`` walk in 8 equal pieces had its main thread idle for 3 of its
+#: 13 ms (docs/study.md, "Large pieces first").
+GUIDED_RATIO = 0.8
+
+
+def guided_fractions(k: int) -> np.ndarray:
+    """(k + 1,) float: ``0 = f_0 < f_1 < ... < f_k = 1``, piece ``j`` of a job cut at these
+    fractions taking ``GUIDED_RATIO ** j`` of the whole over their sum."""
+    w = GUIDED_RATIO ** np.arange(k, dtype=float)
+    f = np.concatenate([[0.0], np.cumsum(w) / w.sum()])
+    f[-1] = 1.0
+    return f
+
+
+def guided_cut(n: int, k: int) -> list[int]:
+    """Bounds ``0 = c_0 < ... < c_m = n`` of ``0 .. n - 1`` cut into ``m <= k`` consecutive
+    ranges at :func:`guided_fractions` (``m < k`` where ``n`` is small: an empty range is
+    dropped)."""
+    cut = np.floor(n * guided_fractions(k)).astype(np.int64)
+    cut[-1] = n
+    return np.unique(cut).tolist() if n > 0 else [0, 0]
 
 
 class _OtherLoad:
@@ -135,7 +162,8 @@ def on_threads(fn, n: int, threads: int) -> None:
 
 def in_pieces(fn, n: int, threads: int, min_size: int = 1) -> None:
     """``fn(a, b)`` over ``0 .. n - 1`` cut into consecutive ranges ``[a, b)``, run on
-    ``threads`` threads (:func:`on_threads`, ``PIECES_PER_THREAD`` ranges per thread). For
+    ``threads`` threads (:func:`on_threads`, ``PIECES_PER_THREAD`` ranges per thread,
+    :func:`guided_cut`). For
     work whose result does not depend on the cut (each element written from its own
     inputs): numpy ufuncs, which release the GIL, and kernels over independent rows. Below
     ``min_size`` elements per thread it runs ``fn(0, n)`` here (handing out costs ~50 us)."""
@@ -143,6 +171,5 @@ def in_pieces(fn, n: int, threads: int, min_size: int = 1) -> None:
         if n:
             fn(0, n)
         return
-    k = min(threads * PIECES_PER_THREAD, n)
-    cut = [n * i // k for i in range(k + 1)]
-    on_threads(lambda j: fn(cut[j], cut[j + 1]), k, threads)
+    cut = guided_cut(n, min(threads * PIECES_PER_THREAD, n))
+    on_threads(lambda j: fn(cut[j], cut[j + 1]), len(cut) - 1, threads)
