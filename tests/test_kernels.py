@@ -214,8 +214,8 @@ def test_pieces_handed_out_from_a_helper_thread_run_there():
 def test_guided_cuts_cover_the_range_large_pieces_first():
     """``guided_cut`` covers ``0 .. n - 1`` in consecutive non-empty ranges, each at most
     the one before it (the last ``GUIDED_RATIO ** (k - 1)`` of the first, to a range's
-    rounding), ``k`` of them where ``n`` is large (an empty range is dropped); the walker's fixed chunk cut
-    (``fused.CHUNK_CUT``) runs from 0 to 1 with shrinking pieces."""
+    rounding), ``k`` of them where ``n`` is large (an empty range is dropped); the walker's
+    fixed chunk cut (``fused.CHUNK_CUT``) runs from 0 to 1 with shrinking pieces."""
     from psurf_core.kernels import fused, threads
 
     for n, k in ((1001, 8), (100_000, 12), (5, 8), (8, 8), (1, 3)):

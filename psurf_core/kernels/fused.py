@@ -57,11 +57,11 @@ CHUNK_BYTES = 128 << 20
 
 #: Pieces a chunk of at least ``THREADED_MIN_PAIRS`` candidate pairs is cut into (by
 #: candidate pairs, at :data:`CHUNK_CUT`: large pieces first), handed to whichever thread is
-#: free. Where the image is small
-#: beside the chunk (:meth:`_Run.walk_chunk`), each piece adds its hits to an image of its
-#: own (the first piece to the pass's), and those are added to the pass's in piece order:
-#: the image's bits depend on the cut, so the count is fixed, never the thread count, and a
-#: pass that emits its hits adds them the same way (:meth:`_Run.finish`).
+#: free. Where the image is small beside the chunk (:meth:`_Run.walk_chunk`), each piece
+#: adds its hits to an image of its own (the first piece to the pass's), and those are added
+#: to the pass's in piece order: the image's bits depend on the cut, so the cut is fixed,
+#: never the thread count, and a pass that emits its hits adds them the same way
+#: (:meth:`_Run.finish`).
 CHUNK_PIECES = 12
 #: Where the pieces of a chunk end, as fractions of its candidate pairs
 #: (:func:`~.threads.guided_fractions`; fixed, so that the image's bits are).
@@ -244,8 +244,8 @@ class _Run:
     def walk_chunk(self, spans, before, a, b, threads, out=None):
         """Run the walker over spans ``a .. b - 1`` on ``threads`` threads: in
         :data:`CHUNK_PIECES` pieces, large first, cut at :data:`CHUNK_CUT` of its candidate
-        pairs (one below
-        ``THREADED_MIN_PAIRS``), each writing its own region of the outputs. Without
+        pairs (one below ``THREADED_MIN_PAIRS``), each writing its own region of the
+        outputs. Without
         ``emit``, where the pieces' images hold fewer cells than the chunk's compact rows
         would (``to_img``; so on all but large images), each piece adds its hits to its own
         image (the first to ``out``), added to ``out`` in order; else to compact rows.

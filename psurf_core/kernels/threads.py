@@ -29,9 +29,9 @@ PIECES_PER_THREAD = 4
 #: Each piece of a shared job is this fraction of the one before it (:func:`guided_cut`):
 #: large pieces first, small ones last, so that the thread that takes the last piece keeps
 #: the other waiting for little. Equal pieces leave a slow thread's last one to wait for: on
-#: this machine one vCPU often runs 1.3x slower than the other (its core's other half busy
-#: elsewhere), and a ``planes`` walk in 8 equal pieces had its main thread idle for 3 of its
-#: 13 ms (docs/study.md, "Large pieces first").
+#: the 2-vCPU machine of docs/study.md one vCPU often ran the walker 1.3x slower than the
+#: other (which one changed from minute to minute), and a ``planes`` walk in 8 equal pieces
+#: had its main thread idle for 3 of its 13 ms ("Large pieces first").
 GUIDED_RATIO = 0.8
 
 
