@@ -21,6 +21,10 @@ machine's second vCPU or its memory can be taken by a neighbour for seconds at a
 * **memory**: a compiled loop reads one float64 array and writes another (``--mb`` MB each)
   on one thread, then two such loops on two threads at once: GB/s moved (read + write).
 
+:func:`cpu_speeds` times any callable alone on each of the two CPUs in turn (``make bench``
+times a one-thread ``planes`` pass so: a vCPU can run the walker 1.3x slower than the other
+while the units read 1.0x).
+
 Usage::
 
     python benchmarks/machine_probe.py [--series 3] [--reps 50] [--mb 32]
@@ -163,6 +167,49 @@ def units(series: int) -> None:
             print(f"units: series {s + 1}, {name}: {1e3 * alone:.1f} ms alone, "
                   f"{1e3 * both[0]:.1f} / {1e3 * both[1]:.1f} ms on two threads at once "
                   f"({r[key]['ratio']:.2f}x)")
+
+
+def _pinned_alone(cpu, fn):
+    """Seconds of ``fn()`` on a new thread of its own pinned to ``cpu`` (where Linux
+    allows), with numba's thread count 1 there (the walkers' pieces stay on it)."""
+    def run():
+        if cpu is not None:
+            os.sched_setaffinity(0, {cpu})
+        numba.set_num_threads(1)  # numba's count is the calling thread's own
+        t = time.perf_counter()
+        fn()
+        return time.perf_counter() - t
+
+    with ThreadPoolExecutor(1) as ex:  # a new thread: its pin dies with it
+        return ex.submit(run).result()
+
+
+def cpu_speeds(fn, rounds: int = 4) -> dict:
+    """``fn()`` alone on each of the first two CPUs in turn, ``rounds`` times each
+    (alternating, so that drift hits both alike): per CPU the median seconds, and ``ratio``,
+    the slower CPU's over the faster's. A walker's pass read 1.3x on this machine while
+    :func:`units_reading` read 1.0x (docs/study.md, "Large pieces first"): whichever vCPU
+    another guest's load lands on runs memory-bound code slower, not these arithmetic loops.
+    Empty where the process cannot be pinned to two CPUs."""
+    cpus = sorted(os.sched_getaffinity(0))[:2] if hasattr(os, "sched_setaffinity") else []
+    if len(cpus) < 2:
+        return {}
+    fn()  # warm
+    times: dict = {c: [] for c in cpus}
+    for r in range(rounds):
+        for c in (cpus if r % 2 == 0 else cpus[::-1]):
+            times[c].append(_pinned_alone(c, fn))
+    med = {c: float(np.median(v)) for c, v in times.items()}
+    return {"seconds": {str(c): v for c, v in med.items()},
+            "ratio": max(med.values()) / min(med.values())}
+
+
+def cpu_speeds_line(reading: dict) -> str:
+    """:func:`cpu_speeds`' ``reading`` in one line."""
+    if not reading:
+        return "not pinned (fewer than two CPUs to pin to)"
+    each = " / ".join(f"CPU {c} {1e3 * t:.1f} ms" for c, t in reading["seconds"].items())
+    return f"{each} ({reading['ratio']:.2f}x)"
 
 
 def memory(series: int, mb: int) -> None:

@@ -21,7 +21,9 @@ whose compiled walkers run on numba's threads (on the cores other processes leav
 
 Beside them, ``machine.units``: :func:`benchmarks.machine_probe.units_reading` before and
 after the headline, whether the two vCPUs shared one core's units then (a slower thread at
-~1.3x / 2x / 2x on the three loops, against ~1.0x on two cores of their own).
+~1.3x / 2x / 2x on the three loops, against ~1.0x on two cores of their own); and
+``machine.walker_by_cpu``: a one-thread ``planes`` pass on each CPU alone
+(:func:`walker_by_cpu`), whether one vCPU runs the walker slower than the other.
 
 Also per technique (:func:`benchmarks.stages.stage_pass`), 1 vs 2 processes, tables per
 doubling of photons and image side, and the peak RSS of a 10^6-photon pass at 256x192
@@ -62,6 +64,15 @@ def _print_run(spec: str, r: dict) -> None:
         print(f"{'':>16}{name:>18}: {'compiled' if pt['compiled'] else 'numpy   '} "
               f"{pt['prims']:>7} prims {pt['candidates']:>10} pairs -> {pt['hits']:>9} hits"
               f"{frac}, {pt['cpu_ns_per_hit']:6.1f} CPU ns/hit")
+
+
+def walker_by_cpu(scene, photons: int) -> dict:
+    """:func:`benchmarks.machine_probe.cpu_speeds` of one compiled ``planes`` pass (pass 0's
+    photons traced and created once, ``pass_breakdown.prepare``) on one thread."""
+    from benchmarks import pass_breakdown
+
+    jobs = pass_breakdown.prepare(scene, "planes", photons)
+    return machine_probe.cpu_speeds(lambda: pass_breakdown.run_pass(jobs))
 
 
 def main(argv=None) -> int:
@@ -108,6 +119,11 @@ def main(argv=None) -> int:
     units = {"before": machine_probe.units_reading()}
     print("# two threads at once / alone (machine_probe.py's units), before: "
           + machine_probe.units_line(units["before"]))
+    # Each vCPU alone on a walker's pass: one often ran it 1.3x slower than the other while
+    # the units read 1.0x (docs/study.md, "Large pieces first").
+    cpus = {"before": walker_by_cpu(scene, args.photons)}
+    print("# a one-thread planes pass on each CPU alone, before: "
+          + machine_probe.cpu_speeds_line(cpus["before"]))
     results = {spec: steady(scene, spec, args.photons, args.reps)
                for spec in args.estimators.split(",")}
     for spec, r in results.items():
@@ -137,6 +153,9 @@ def main(argv=None) -> int:
     units["after"] = machine_probe.units_reading()
     print("# two threads at once / alone (machine_probe.py's units), after: "
           + machine_probe.units_line(units["after"]))
+    cpus["after"] = walker_by_cpu(scene, args.photons)
+    print("# a one-thread planes pass on each CPU alone, after: "
+          + machine_probe.cpu_speeds_line(cpus["after"]))
     print("\nheadline (median of warm passes)            measured     target")
     for spec, target in TARGETS.items():
         if spec in results:
@@ -151,7 +170,8 @@ def main(argv=None) -> int:
         "command": cmd,
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                     "numpy": np.__version__, "numba_threads": numba.get_num_threads(),
-                    "load_average": os.getloadavg(), "units": units},
+                    "load_average": os.getloadavg(), "units": units,
+                    "walker_by_cpu": cpus},
         "scene": args.scene, "photons": args.photons, "reps": args.reps,
         "headline": head, "targets": {"hits_per_second": TARGETS, "trace": TRACE_TARGET,
                                       "hit_cost_ratio": RATIO_TARGET},
