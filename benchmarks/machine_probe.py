@@ -104,9 +104,11 @@ def threads(series: int, reps: int) -> None:
 
 def _pinned(cpu, fn, n, barrier):
     """Seconds of ``fn(n)`` on a thread of its own, pinned to ``cpu`` (where Linux allows),
-    started together with the other threads at ``barrier``."""
+    started together with the other threads at ``barrier``; numba's thread count is 1 there
+    (it is the calling thread's own), so a walker's pieces stay on that CPU."""
     if cpu is not None:
         os.sched_setaffinity(0, {cpu})
+    numba.set_num_threads(1)
     barrier.wait()
     t = time.perf_counter()
     fn(n)
@@ -169,21 +171,6 @@ def units(series: int) -> None:
                   f"({r[key]['ratio']:.2f}x)")
 
 
-def _pinned_alone(cpu, fn):
-    """Seconds of ``fn()`` on a new thread of its own pinned to ``cpu`` (where Linux
-    allows), with numba's thread count 1 there (the walkers' pieces stay on it)."""
-    def run():
-        if cpu is not None:
-            os.sched_setaffinity(0, {cpu})
-        numba.set_num_threads(1)  # numba's count is the calling thread's own
-        t = time.perf_counter()
-        fn()
-        return time.perf_counter() - t
-
-    with ThreadPoolExecutor(1) as ex:  # a new thread: its pin dies with it
-        return ex.submit(run).result()
-
-
 def cpu_speeds(fn, rounds: int = 4) -> dict:
     """``fn()`` alone on each of the first two CPUs in turn, ``rounds`` times each
     (alternating, so that drift hits both alike): per CPU the median seconds, and ``ratio``,
@@ -198,7 +185,7 @@ def cpu_speeds(fn, rounds: int = 4) -> dict:
     times: dict = {c: [] for c in cpus}
     for r in range(rounds):
         for c in (cpus if r % 2 == 0 else cpus[::-1]):
-            times[c].append(_pinned_alone(c, fn))
+            times[c].append(_at_once(lambda _: fn(), 0, [c])[0])
     med = {c: float(np.median(v)) for c, v in times.items()}
     return {"seconds": {str(c): v for c, v in med.items()},
             "ratio": max(med.values()) / min(med.values())}

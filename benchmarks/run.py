@@ -44,7 +44,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks import bench_compare, extras, machine_probe  # noqa: E402
+from benchmarks import bench_compare, extras, machine_probe, pass_breakdown  # noqa: E402
 from benchmarks.stages import paired_cost_ratio, steady, trace_rate  # noqa: E402
 from psurf_core.render import PHOTON_BATCH  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
@@ -66,12 +66,9 @@ def _print_run(spec: str, r: dict) -> None:
               f"{frac}, {pt['cpu_ns_per_hit']:6.1f} CPU ns/hit")
 
 
-def walker_by_cpu(scene, photons: int) -> dict:
-    """:func:`benchmarks.machine_probe.cpu_speeds` of one compiled ``planes`` pass (pass 0's
-    photons traced and created once, ``pass_breakdown.prepare``) on one thread."""
-    from benchmarks import pass_breakdown
-
-    jobs = pass_breakdown.prepare(scene, "planes", photons)
+def walker_by_cpu(jobs) -> dict:
+    """:func:`benchmarks.machine_probe.cpu_speeds` of one compiled pass of ``jobs``
+    (``pass_breakdown.prepare``'s: photons traced and created once) on one thread."""
     return machine_probe.cpu_speeds(lambda: pass_breakdown.run_pass(jobs))
 
 
@@ -121,7 +118,8 @@ def main(argv=None) -> int:
           + machine_probe.units_line(units["before"]))
     # Each vCPU alone on a walker's pass: one often ran it 1.3x slower than the other while
     # the units read 1.0x (docs/study.md, "Large pieces first").
-    cpus = {"before": walker_by_cpu(scene, args.photons)}
+    planes_pass = pass_breakdown.prepare(scene, "planes", args.photons)
+    cpus = {"before": walker_by_cpu(planes_pass)}
     print("# a one-thread planes pass on each CPU alone, before: "
           + machine_probe.cpu_speeds_line(cpus["before"]))
     results = {spec: steady(scene, spec, args.photons, args.reps)
@@ -153,7 +151,7 @@ def main(argv=None) -> int:
     units["after"] = machine_probe.units_reading()
     print("# two threads at once / alone (machine_probe.py's units), after: "
           + machine_probe.units_line(units["after"]))
-    cpus["after"] = walker_by_cpu(scene, args.photons)
+    cpus["after"] = walker_by_cpu(planes_pass)
     print("# a one-thread planes pass on each CPU alone, after: "
           + machine_probe.cpu_speeds_line(cpus["after"]))
     print("\nheadline (median of warm passes)            measured     target")

@@ -245,10 +245,10 @@ class _Run:
         """Run the walker over spans ``a .. b - 1`` on ``threads`` threads: in
         :data:`CHUNK_PIECES` pieces, large first, cut at :data:`CHUNK_CUT` of its candidate
         pairs (one below ``THREADED_MIN_PAIRS``), each writing its own region of the
-        outputs. Without
-        ``emit``, where the pieces' images hold fewer cells than the chunk's compact rows
-        would (``to_img``; so on all but large images), each piece adds its hits to its own
-        image (the first to ``out``), added to ``out`` in order; else to compact rows.
+        outputs. Without ``emit``, where the pieces' images hold fewer cells than the
+        chunk's compact rows would (``to_img``; so on all but large images), each piece adds
+        its hits to its own image (the first to ``out``), added to ``out`` in order; else to
+        compact rows.
         ``before``: (S + 1,) the candidate pairs before each span (:func:`spans_before`)."""
         # Candidate pairs before each span of the chunk: the pieces' cut and their row ranges.
         base = int(before[a])
