@@ -165,7 +165,7 @@ def test_threads_only_on_cores_other_processes_leave_free(monkeypatch):
     from psurf_core.kernels import threads
 
     monkeypatch.setattr(threads, "get_num_threads", lambda: 2)
-    monkeypatch.setattr(threads.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(threads, "_CPUS", 2)
     for others, want in [(0.0, 2), (0.4, 2), (0.7, 1), (1.0, 1), (3.0, 1)]:
         monkeypatch.setattr(threads, "_OTHER_LOAD", lambda o=others: o)
         assert threads.thread_count() == want

@@ -1,4 +1,4 @@
-"""The compiled per-row spans of projected polygons (``kernels.spans._row_spans``), which clip
+"""The compiled per-row spans of projected polygons (``kernels.spans._row_spans_into``), which clip
 each edge to the strips of the rows its ``y`` range reaches, against the definition: every
 edge clipped to every row's strip ``[row - margin, row + 1 + margin]``, the row's span the
 pixels from the least to the greatest ``x`` of those pieces (widened by the margin, within
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from psurf_core.binning import _SPAN_MARGIN
-from psurf_core.kernels.spans import _row_spans
+from psurf_core.kernels.spans import _row_spans_into
 
 
 def _definition(px, py, count, r0, nr, x0, x1):
@@ -72,9 +72,31 @@ def test_row_spans_are_every_edge_clipped_to_every_row(seed):
     x1 = x0 + rng.integers(0, 40, m)
     r0 = rng.integers(0, 40, m).astype(np.int64)
     nr = rng.integers(0, 20, m).astype(np.int64)
-    n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
+    prim, row, c0, c1 = (np.full(int(nr.sum()) + 1, -7, np.int64) for _ in range(4))
+    none = np.zeros(0, np.int64)
+    n, pairs, columns = _row_spans_into(px, py, count, r0, nr, x0, x1, 0, prim, row, c0, c1,
+                                        0, none, 0, none)
+    assert (prim[n:] == -7).all()  # nothing written past the entries it returns
     got = list(zip(prim[:n].tolist(), row[:n].tolist(), c0[:n].tolist(), c1[:n].tolist(),
                    strict=True))
     want = _definition(px, py, count, r0, nr, x0, x1)
     assert len(want) > 2000
     assert got == want
+    assert pairs == columns == 0
+
+    # Counted as they are written (``before``), from entry 5 on, primitives named from 100:
+    # the pairs of the spans up to each entry, a span's the rays of its pixels.
+    w, h = 70, 61
+    cs = np.concatenate([[0], np.cumsum(rng.integers(0, 4, w * h))])
+    o = [np.full(n + 5, -7, np.int64) for _ in range(4)]
+    before = np.full(n + 6, -7, np.int64)
+    n2, pairs, columns = _row_spans_into(px, py, count, r0, nr, x0, x1, 100, *o, 5, cs, w,
+                                         before)
+    assert n2 == n + 5
+    np.testing.assert_array_equal(o[0][5:], prim[:n] + 100)
+    for a, b in zip(o[1:], (row, c0, c1), strict=True):
+        np.testing.assert_array_equal(a[5:], b[:n])
+    span_pairs = cs[row[:n] * w + c1[:n]] - cs[row[:n] * w + c0[:n]]
+    np.testing.assert_array_equal(before[6:], np.cumsum(span_pairs))
+    assert (before[:6] == -7).all()
+    assert pairs == span_pairs.sum() > 0 and columns == (c1[:n] - c0[:n]).sum()

@@ -39,7 +39,7 @@ from .jit import ctrl_c_kept, kernel
 from .mis import member_params, weight_of
 from .rays import ray_table
 from .shadow import shadow_args
-from .spans import hull_spans
+from .spans import counted_spans
 from .threads import guided_fractions, on_threads, thread_count
 from .walk import accumulate, walker
 
@@ -195,29 +195,41 @@ class _Run:
                       c(paths.w, float), c(paths.t, float), lights, shares, emit)
 
     def spans(self):
+        """The candidate spans ``(prim, row, c0, c1)`` (None: none), the candidate pairs
+        before each (None where not counted with them: :func:`.spans.counted_spans`) and
+        their columns."""
         cam, med = self.ctx.scene.camera, self.ctx.scene.medium
         box = (med.bounds_min, med.bounds_max)
-        prims = self.prims
+        prims, width = self.prims, int(cam.width)
         if prims.hull is not None:
-            return hull_spans(cam, prims.lo, prims.hi, prims.hull, prims.clip_box(self.ctx.scene))
+            return counted_spans(cam, prims.lo, prims.hi, prims.hull,
+                                 prims.clip_box(self.ctx.scene), self.cs, width)
         if prims.cloud is not None:
-            return hull_spans(cam, prims.lo, prims.hi, prims.cloud, box, cloud=True)
+            return counted_spans(cam, prims.lo, prims.hi, prims.cloud, box, self.cs, width,
+                                 cloud=True)
         x0, x1, y0, y1 = screen_rects(cam, prims.lo, prims.hi)
-        return _spans(cam, x0, x1, y0, y1, None, box, self.ctx.max_pairs)
+        return _spans(cam, x0, x1, y0, y1, None, box, self.ctx.max_pairs), None, 0
 
     def chunks(self, out):
         if len(self.prims) == 0:
             return
-        spans = self.spans()
+        spans, before, columns = self.spans()
         if spans is None or spans[0].size == 0:
             return
         spans = tuple(np.ascontiguousarray(a, np.int64) for a in spans)
         s_prim, s_row, s_c0, s_c1 = spans
         # Chunks as binning's (pixels x the most rays in a pixel, within the chunk's pairs).
-        per_pix = max(int(np.diff(self.cs).max()), 1)
-        before, slots = spans_before(self.cs, s_row, s_c0, s_c1,
-                                     int(self.ctx.scene.camera.width), per_pix)
-        bounds = chunk_bounds_cum(slots[1:], self.chunk_pairs())
+        per_pix = memo(self.rays, "most rays in a pixel",
+                       lambda: max(int(np.diff(self.cs).max()), 1))
+        most = self.chunk_pairs()
+        if before is None:
+            before, slots = spans_before(self.cs, s_row, s_c0, s_c1,
+                                         int(self.ctx.scene.camera.width), per_pix)
+            bounds = chunk_bounds_cum(slots[1:], most)
+        elif columns * per_pix <= most:
+            bounds = [0, s_row.size]
+        else:
+            bounds = chunk_bounds_cum(np.cumsum((s_c1 - s_c0) * per_pix), most)
         threads = thread_count()
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             check()  # a held Ctrl-C (interrupt.held): between chunks
@@ -256,7 +268,9 @@ class _Run:
         if total < THREADED_MIN_PAIRS:
             cut = [a, b]
         else:
-            at = base + total * CHUNK_CUT[1:-1]
+            # As integers (the first span whose pairs before reach the float cut: the same):
+            # numpy's search of int64 for float keys converts the array, ~60 us a pass.
+            at = np.ceil(base + total * CHUNK_CUT[1:-1]).astype(np.int64)
             cut = np.unique(np.concatenate(
                 [[a], a + np.searchsorted(before[a + 1:b + 1], at), [b]])).tolist()
         off = ((before[np.asarray(cut)] - base) * self.fam.n_roots).astype(np.int64)

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..binning import _NEAR, _SPAN_MARGIN, screen_rects
 from ..memo import memo
+from .buffers import HitBuffers
 from .cloud_spans import cloud_project, hull_width, max_points
 from .jit import inline, kernel, scalar
 from .projection import _project, _row_range, camera_row
@@ -158,26 +159,6 @@ def _clip_project(hull, live, planes, cam, x0, x1, y0, y1):  # pragma: no cover 
     return px, py, count, r0, nr
 
 
-@kernel(nogil=True)
-def _row_spans(px, py, count, r0, nr, x0, x1, total):  # pragma: no cover - compiled
-    """Per-row column spans ``[c0, c1)`` of the projected polygons of :func:`_clip_project`
-    (each polygon edge clipped to the row's strip widened by ``_SPAN_MARGIN``, as
-    ``binning._polygon_spans``), primitive-major then by row; empty spans are dropped.
-
-    Returns
-    -------
-    n : int
-    prim, row, c0, c1 : (total,) int64
-        The first ``n`` entries.
-    """
-    o_prim = np.empty(total, np.int64)
-    o_row = np.empty(total, np.int64)
-    o_c0 = np.empty(total, np.int64)
-    o_c1 = np.empty(total, np.int64)
-    n = _row_spans_into(px, py, count, r0, nr, x0, x1, 0, o_prim, o_row, o_c0, o_c1, 0)
-    return n, o_prim, o_row, o_c0, o_c1
-
-
 @inline
 def _put(o_prim, o_row, o_c0, o_c1, n, prim, row, c0, c1):  # pragma: no cover - compiled
     """Span ``(prim, row, c0, c1)`` written at entry ``n``; returns ``n + 1``."""
@@ -185,11 +166,35 @@ def _put(o_prim, o_row, o_c0, o_c1, n, prim, row, c0, c1):  # pragma: no cover -
     return n + 1
 
 
+@inline
+def _pairs_of(cs, width, row, c0, c1):  # pragma: no cover - compiled
+    """The candidate pairs of span ``(row, c0, c1)``: the rays of its pixels."""
+    p = row * width
+    return cs[p + c1] - cs[p + c0]
+
+
 @kernel(nogil=True)
 def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o_c1,
-                    n):  # pragma: no cover - compiled
-    """:func:`_row_spans` written to the given arrays from entry ``n``, primitive ``i`` named
-    ``p_off + i``; returns the entry after the last one written.
+                    n, cs, width, before):  # pragma: no cover - compiled
+    """Per-row column spans ``[c0, c1)`` of the projected polygons of :func:`_clip_project`
+    (each polygon edge clipped to the row's strip widened by ``_SPAN_MARGIN``, as
+    ``binning._polygon_spans``), primitive-major then by row, written to the given arrays
+    from entry ``n`` (empty spans are dropped), primitive ``i`` named ``p_off + i``.
+
+    With a non-empty ``before`` ((n_spans + 1,) int64), ``before[e + 1]`` is the candidate
+    pairs of the spans written up to entry ``e`` (running from this call's first entry; a
+    span's pairs are the rays of its pixels, ``cs`` the pixels' running ray counts of an
+    image ``width`` pixels wide): counted as each span is written, where the walk's cuts
+    need them (counted after the spans in one loop, ~0.34 ms of a 15 ms ``planes`` pass on
+    one core, docs/study.md, "Spans counted as they are written").
+
+    Returns
+    -------
+    n : int
+        The entry after the last one written.
+    pairs, columns : int
+        With ``before``: the written spans' candidate pairs and pixels (``sum(c1 - c0)``;
+        binning's chunk size is ``columns * per_pix``); else 0, 0.
 
     Edge by edge: each polygon edge is clipped to the strips of the rows its ``y`` range
     can reach (one row more each side), not to every row of the primitive, and widens those
@@ -198,6 +203,8 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
     ``hi_y - y`` or ``y - lo_y`` decides it exactly), so the spans are the same; a cone's
     footprint of ~9 edges over ~26 rows is clipped ~2-3 times a row, not 9."""
     big = 1e30
+    counted = before.shape[0] > 0
+    pairs = columns = 0
     most = 0
     for i in range(px.shape[0]):
         most = max(most, nr[i])
@@ -211,6 +218,10 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
             if x1[i] > x0[i]:
                 for row in range(ra, ra + m):
                     n = _put(o_prim, o_row, o_c0, o_c1, n, p_off + i, row, x0[i], x1[i])
+                    if counted:
+                        pairs += _pairs_of(cs, width, row, x0[i], x1[i])
+                        columns += x1[i] - x0[i]
+                        before[n] = pairs
             continue
         for r in range(m):
             xmin[r], xmax[r] = big, -big
@@ -250,7 +261,11 @@ def _row_spans_into(px, py, count, r0, nr, x0, x1, p_off, o_prim, o_row, o_c0, o
             c1 = int(min(np.floor(xmax[r] + _SPAN_MARGIN) + 1, x1[i]))
             if c1 > c0:
                 n = _put(o_prim, o_row, o_c0, o_c1, n, p_off + i, ra + r, c0, c1)
-    return n
+                if counted:  # (a running sum: ~1.4 ns a span, one core)
+                    pairs += _pairs_of(cs, width, ra + r, c0, c1)
+                    columns += c1 - c0
+                    before[n] = pairs
+    return n, pairs, columns
 
 
 def _clip_planes(cam, box):
@@ -268,12 +283,12 @@ def _clip_planes(cam, box):
     return out
 
 
-#: Non-empty once the threaded path's kernel (:func:`_row_spans_into`) is loaded in this
-#: process.
-_WARM: list = []
-
 #: Primitives from which :func:`hull_spans` is shared among threads (~1 us each).
 _THREADED_MIN_PRIMS = 2000
+
+#: :func:`counted_spans`' ``before``, in memory written before (:mod:`.buffers`).
+_COUNTS = HitBuffers()
+_BEFORE = ((np.int64, 1),)
 
 
 def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
@@ -291,6 +306,23 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
     Many primitives are cut into consecutive pieces that numba's threads clip and project,
     then write the spans of, in primitive order (each primitive's spans depend on it alone):
     the same spans for any thread count."""
+    return counted_spans(cam, lo, hi, hull, box, None, 0, cloud)[0]
+
+
+def counted_spans(cam, lo, hi, hull, box, cs, width, cloud: bool = False):
+    """:func:`hull_spans` and, where ``cs`` is given (the pixels' running ray counts,
+    :func:`.rays.ray_table`, of an image ``width`` pixels wide), what comes before each span
+    (:mod:`.span_pairs`), counted by the threads that write the spans.
+
+    Returns
+    -------
+    spans : tuple of 4 (S,) int64
+        ``(prim, row, c0, c1)``.
+    before : (S + 1,) int64 or None
+        The candidate pairs of spans ``0 .. i - 1`` (None without ``cs``).
+    columns : int
+        ``sum(c1 - c0)`` (0 without ``cs``).
+    """
     per = np.ndim(box[0]) == 2  # a box per primitive (Primitives.box)
     planes = (_clip_planes(cam, box) if per else
               memo(cam, ("clip planes", tuple(np.ravel(box))), lambda: _clip_planes(cam, box)))
@@ -304,10 +336,10 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
         # An odd count: an apex and a ring (a cone's pyramid); even: two rings (a prism).
         v = hull.shape[1]
         na = 1 if v % 2 else v // 2
-        pmax, width = max_points(v, na), hull_width(v)
+        pmax, hw = max_points(v, na), hull_width(v)
 
         def outline(h, live, _, camv, x0, x1, y0, y1):
-            return cloud_project(h, na, live, near, corners, camv, x0, x1, y0, y1, pmax, width)
+            return cloud_project(h, na, live, near, corners, camv, x0, x1, y0, y1, pmax, hw)
     else:
         outline = _clip_project
     # +-inf / NaN bounds: binning's rounding at its 1e30 stand-ins is not mirrored
@@ -315,17 +347,7 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
                                                                                         hi)
     m = lo.shape[0]
     threads = thread_count() if m >= _THREADED_MIN_PRIMS else 1
-    if threads <= 1:
-        x0, x1, y0, y1 = rects if rects is not None else _screen_rects(lo, hi, camv)
-        live = (x1 > x0) & (y1 > y0)
-        px, py, count, r0, nr = outline(hull, live, planes, camv, x0, x1, y0, y1)
-        n, prim, row, c0, c1 = _row_spans(px, py, count, r0, nr, x0, x1, int(nr.sum()))
-        if not _WARM:  # load the threaded path's kernel now (render.warm_up's pass)
-            _row_spans_into(px[:0], py[:0], count[:0], r0[:0], nr[:0], x0[:0], x1[:0], 0,
-                            prim, row, c0, c1, n)
-            _WARM.append(True)
-        return prim[:n], row[:n], c0[:n], c1[:n]
-    cut = guided_cut(m, threads * PIECES_PER_THREAD)
+    cut = guided_cut(m, threads * PIECES_PER_THREAD) if threads > 1 else [0, m]
     parts = [None] * (len(cut) - 1)
 
     def project(j):  # screen rectangles, clipped and projected hulls, rows per primitive
@@ -340,19 +362,32 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
     # Each piece writes from the first row it could fill (its rows before it), then the
     # pieces close up in order: the spans of one thread, in as much memory.
     at = np.cumsum([0] + [int(pp[-1].sum()) for pp in parts])
-    out = [np.empty(int(at[-1]), np.int64) for _ in range(4)]
+    out = tuple(np.empty(int(at[-1]), np.int64) for _ in range(4))
+    counted = cs is not None
+    cs = cs if counted else np.zeros(1, np.int64)
+    before = (_COUNTS.take("before", _BEFORE, int(at[-1]) + 1)[0] if counted
+              else np.zeros(0, np.int64))
     end = np.zeros(len(parts), np.int64)
+    sums = np.zeros((len(parts), 2), np.int64)  # per piece: candidate pairs, columns
 
-    def fill(j):
+    def fill(j):  # pairs running within the piece: the pieces before it are added below
         x0, x1, px, py, count, r0, nr = parts[j]
-        end[j] = _row_spans_into(px, py, count, r0, nr, x0, x1, cut[j], *out, at[j])
+        end[j], sums[j, 0], sums[j, 1] = _row_spans_into(px, py, count, r0, nr, x0, x1, cut[j],
+                                                         *out, at[j], cs, width, before)
 
     on_threads(fill, len(parts), threads)
-    n = 0
+    n = base = 0
     for j in range(len(parts)):
         k = int(end[j] - at[j])
         if at[j] != n:
             for o in out:
                 o[n:n + k] = o[at[j]:at[j] + k]  # numpy copies overlapping slices safely
+        if counted and (at[j] != n or base):
+            np.add(before[at[j] + 1:at[j] + k + 1], base, out=before[n + 1:n + k + 1])
         n += k
-    return tuple(o[:n] for o in out)
+        base += int(sums[j, 0])
+    if not counted:
+        return tuple(o[:n] for o in out), None, 0
+    before[0] = 0
+    return tuple(o[:n] for o in out), before[:n + 1], int(sums[:, 1].sum())
+

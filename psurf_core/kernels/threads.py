@@ -98,12 +98,16 @@ _LOAD_REFRESH = 0.5
 _OTHER_LOAD = _OtherLoad()
 
 
+#: The machine's CPUs (``os.cpu_count`` reads ``/sys`` at every call: ~6 us, twice a pass).
+_CPUS = os.cpu_count() or 1
+
+
 def thread_count() -> int:
     """Threads for a large chunk: numba's thread count (``numba.set_num_threads``,
     ``NUMBA_NUM_THREADS``), at most the cores other processes leave free (at least 1)."""
     n = get_num_threads()
     if n > 1:
-        free = (os.cpu_count() or 1) - _OTHER_LOAD()
+        free = _CPUS - _OTHER_LOAD()
         n = max(1, min(n, int(free + 0.5)))
     return n
 
