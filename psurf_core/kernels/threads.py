@@ -9,6 +9,7 @@ depend on which thread ran which piece: the thread count changes the time, never
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 import time
@@ -35,12 +36,15 @@ PIECES_PER_THREAD = 4
 GUIDED_RATIO = 0.8
 
 
+@functools.cache
 def guided_fractions(k: int) -> np.ndarray:
-    """(k + 1,) float: ``0 = f_0 < f_1 < ... < f_k = 1``, piece ``j`` of a job cut at these
-    fractions taking ``GUIDED_RATIO ** j`` of the whole over their sum."""
+    """(k + 1,) float, read-only: ``0 = f_0 < f_1 < ... < f_k = 1``, piece ``j`` of a job
+    cut at these fractions taking ``GUIDED_RATIO ** j`` of the whole over their sum (kept:
+    every pass cuts its spans with the same ``k``)."""
     w = GUIDED_RATIO ** np.arange(k, dtype=float)
     f = np.concatenate([[0.0], np.cumsum(w) / w.sum()])
     f[-1] = 1.0
+    f.flags.writeable = False
     return f
 
 
