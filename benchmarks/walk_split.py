@@ -1,6 +1,8 @@
 """Where one technique's walk goes: screen spans, candidate counts, the compiled walker and the
 image addition (compact rows or the pieces' own images), per pass (wall clock), with the hits
-per second ``make bench`` reports.
+per second ``make bench`` reports. (Hull and cloud footprints count their candidates as their
+spans are written, ``kernels.spans.counted_spans``: inside ``spans`` here; the candidate
+counts are ``fused.spans_before``'s on binning's rectangles alone.)
 
 Usage::
 
