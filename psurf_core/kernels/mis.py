@@ -200,12 +200,3 @@ def _compose(fams, keys, me, power, ratio):
         return m / (den * params[me, 0]) if den > 0.0 else 0.0
 
     return Weight(shares, w)
-    rest = _sum(others)
-
-    @inline
-    def w(row, params, shares):
-        m = mine(row, params, shares)
-        den = m + rest(row, params, shares)
-        return m / (den * params[me, 0]) if den > 0.0 else 0.0
-
-    return Weight(shares, w)

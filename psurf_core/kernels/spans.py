@@ -311,8 +311,9 @@ def hull_spans(cam, lo, hi, hull, box, cloud: bool = False):
 
 def counted_spans(cam, lo, hi, hull, box, cs, width, cloud: bool = False):
     """:func:`hull_spans` and, where ``cs`` is given (the pixels' running ray counts,
-    :func:`.rays.ray_table`, of an image ``width`` pixels wide), what comes before each span
-    (:mod:`.span_pairs`), counted by the threads that write the spans.
+    :func:`.rays.ray_table`, of an image ``width`` pixels wide), what comes before each span,
+    counted by the threads that write the spans (:func:`_row_spans_into`'s ``before``; the
+    pieces' running sums are then moved past the pieces before them).
 
     Returns
     -------
@@ -392,4 +393,3 @@ def counted_spans(cam, lo, hi, hull, box, cs, width, cloud: bool = False):
         return tuple(o[:n] for o in out), None, 0
     before[0] = 0
     return tuple(o[:n] for o in out), before[:n + 1], int(sums[:, 1].sum())
-
