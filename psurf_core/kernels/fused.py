@@ -39,7 +39,7 @@ from .jit import ctrl_c_kept, kernel
 from .mis import member_params, weight_of
 from .rays import ray_table
 from .shadow import shadow_args
-from .spans import counted_spans
+from .spans import _pairs_of, counted_spans
 from .threads import guided_fractions, on_threads, thread_count
 from .walk import accumulate, walker
 
@@ -369,8 +369,7 @@ def spans_before(cs, s_row, s_c0, s_c1, width, per_pix):  # pragma: no cover - c
     before[0] = 0
     slots[0] = 0
     for i in range(n):
-        b = s_row[i] * width
-        before[i + 1] = before[i] + cs[b + s_c1[i]] - cs[b + s_c0[i]]
+        before[i + 1] = before[i] + _pairs_of(cs, width, s_row[i], s_c0[i], s_c1[i])
         slots[i + 1] = slots[i] + (s_c1[i] - s_c0[i]) * per_pix
     return before, slots
 
