@@ -1,111 +1,113 @@
-"""Where the wall time of whole passes goes, phase by phase: the trace, each member's Create
-and walk (with the members' shares applied, as ``render_pass`` runs them), and the rest; wall
-and CPU time of each, and the cores it kept busy.
+"""The phases of one compiled pass per technique: the jobs it hands to the threads (the
+spans' ``project`` and ``fill``, the walk's ``piece``: :func:`psurf_core.kernels.threads.on_threads`
+calls, named by the function handed out) and the stretches between them, where one thread
+runs Python (``serial``), in wall ms.
 
-``render_pass`` itself runs (the path ``compare`` takes), with clocks around ``trace``, each
-technique's ``create`` and the compiled walk of each (``fused_pass``'s chunks), so the phases
-are the real ones, threads included. The serial phases (one core) are what a pass cannot
-spread over two cores; the walks' serial addition to the image (of their compact rows,
-``fused.accumulate``, or of their pieces' own images, ``fused.add_images``) is printed beside
-them. Medians are not taken: the sums over ``--passes`` passes after three warm ones, per
-pass.
+The pass is :func:`benchmarks.pass_breakdown.run_pass` on the inputs of
+:func:`benchmarks.pass_breakdown.prepare` (pass 0 of seed 0, traced and created once), run
+``--rounds`` times per technique; each phase's figure is its median over the rounds after
+the first. The serial stretches are what a second core cannot shorten (docs/study.md,
+"Spans counted as they are written").
 
 Usage::
 
-    python benchmarks/pass_phases.py SCENE.toml KMIN KMAX SPEC [--photons 1404] [--passes 20]
-    python benchmarks/pass_phases.py scenes/study_medium.toml 2 3 fast-multi --photons 1404
-
-Not a test: times move with the machine's load; compare within one run.
+    python benchmarks/pass_phases.py SCENE.toml [--spec planes] [--photons 5000]
+        [--rounds 40] [--threads 2] [--json PATH]
 """
 
 from __future__ import annotations
 
 import argparse
-import collections
+import json
 import os
+import statistics
 import sys
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-import psurf_core.kernels.fused as F  # noqa: E402
-import psurf_core.render as R  # noqa: E402
-from benchmarks.scene_args import add_scene_args, scene_of  # noqa: E402
-from psurf_core.estimators import parse_estimator  # noqa: E402
+import numba  # noqa: E402
+
+from benchmarks.pass_breakdown import BenchError, prepare, run_pass  # noqa: E402
+from psurf_core.kernels import fused, spans  # noqa: E402
+from psurf_core.scene import SceneError  # noqa: E402
+from psurf_core.scene_io import load_scene  # noqa: E402
+from psurf_core.techniques import UnknownTechnique  # noqa: E402
+
+#: The modules whose ``on_threads`` a pass calls (each imported it by name).
+_CALLERS = (fused, spans)
 
 
-def _clocked(table, name, fn):
-    """``fn`` with its wall and CPU (this process) time added to ``table[name]``."""
+def phases(job, rounds: int) -> list[tuple[str, float]]:
+    """``[(name, median wall ms), ...]`` of one technique's pass in order: ``serial`` before,
+    between and after the thread jobs, each job by its function's name."""
+    marks: list = []
+    originals = [m.on_threads for m in _CALLERS]
 
-    def run(*a, **k):
-        w, c = time.perf_counter(), time.process_time()
-        try:
-            return fn(*a, **k)
-        finally:
-            table[name][0] += time.perf_counter() - w
-            table[name][1] += time.process_time() - c
+    def timed(fn, n, threads, _run=originals[0]):
+        marks.append((fn.__name__, time.perf_counter()))
+        _run(fn, n, threads)
+        marks.append(("serial", time.perf_counter()))
 
-    return run
+    per_round = []
+    try:
+        for m in _CALLERS:
+            m.on_threads = timed
+        for _ in range(rounds):
+            marks.clear()
+            t0 = time.perf_counter()
+            run_pass([job])
+            t1 = time.perf_counter()
+            points = [("serial", t0), *marks, ("end", t1)]
+            per_round.append([(name, 1e3 * (b - a))
+                              for (name, a), (_, b) in zip(points[:-1], points[1:], strict=True)])
+    finally:
+        for m, f in zip(_CALLERS, originals, strict=True):
+            m.on_threads = f
+    warm = per_round[1:]
+    if any([n for n, _ in r] != [n for n, _ in warm[0]] for r in warm):
+        raise BenchError("the pass handed out different jobs from round to round")
+    return [(name, statistics.median(r[i][1] for r in warm))
+            for i, (name, _) in enumerate(warm[0])]
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_scene_args(ap)
-    ap.add_argument("spec")
-    ap.add_argument("--photons", type=int, default=1404)
-    ap.add_argument("--passes", type=int, default=20)
-    a = ap.parse_args(argv)
-    scene = scene_of(a)
-    est = parse_estimator(a.spec, scene)
-    phases = collections.defaultdict(lambda: [0.0, 0.0])
-
-    R.trace = _clocked(phases, "trace", R.trace)
-    fused = R.fused_pass
-
-    def fused_pass(tech, *args, **kw):
-        chunks = fused(tech, *args, **kw)
-        if chunks is None:
-            return None
-
-        def walk():
-            yield from _clocked(phases, f"walk {tech.name}", lambda: list(chunks))()
-
-        return walk()
-
-    R.fused_pass = fused_pass
-    # The addition to the image of the compact rows or of the pieces' own images, one core,
-    # between a chunk's walk and the next: inside the walk phases above, printed beside them.
-    inner = collections.defaultdict(lambda: [0.0, 0.0])
-    F.accumulate = _clocked(inner, "image addition (in the walks)", F.accumulate)
-    F.add_images = _clocked(inner, "image addition (in the walks)", F.add_images)
-    for group, _ in est.sets:
-        for tech in group:
-            tech.create = _clocked(phases, f"create {tech.name}", tech.create)
-
-    settings = R.RenderSettings(photons=a.photons)
-    for i in range(3):  # warm: compiled kernels, buffers
-        R.render_pass(scene, est, i, 1, settings)
-    phases.clear()
-    inner.clear()
-    w0, c0 = time.perf_counter(), time.process_time()
-    for i in range(a.passes):
-        R.render_pass(scene, est, 3 + i, 1, settings)
-    wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-    n = a.passes
-    res = f" --resolution {a.resolution[0]},{a.resolution[1]}" if a.resolution else ""
-    print(f"# python benchmarks/pass_phases.py {a.scene} {a.kmin} {a.kmax} {a.spec} "
-          f"--photons {a.photons} --passes {a.passes}{res}")
-    print(f"{a.spec}, {a.photons} photons: pass wall {wall / n * 1e3:.2f} ms, "
-          f"CPU {cpu / n * 1e3:.2f} ms, {cpu / wall:.2f} cores")
-    rest_w, rest_c = wall, cpu
-    for name, (w, c) in phases.items():
-        print(f"  {name:28s} wall {w / n * 1e3:7.2f} ms  CPU {c / n * 1e3:7.2f} ms  "
-              f"{c / max(w, 1e-12):.2f} cores")
-        rest_w, rest_c = rest_w - w, rest_c - c
-    print(f"  {'rest (rays, MIS set, image)':28s} wall {rest_w / n * 1e3:7.2f} ms  "
-          f"CPU {rest_c / n * 1e3:7.2f} ms")
-    for name, (w, c) in inner.items():
-        print(f"  {name:28s} wall {w / n * 1e3:7.2f} ms  CPU {c / n * 1e3:7.2f} ms")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene")
+    ap.add_argument("--spec", default="planes")
+    ap.add_argument("--photons", type=int, default=5000)
+    ap.add_argument("--rounds", type=int, default=40)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--json", metavar="PATH")
+    args = ap.parse_args(argv)
+    before = numba.get_num_threads()
+    try:
+        if args.rounds < 2 or args.photons < 1:
+            raise BenchError("--rounds must be at least 2 (the first is cold) and --photons "
+                             "at least 1")
+        if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
+            raise BenchError(f"--threads must be 1..{numba.config.NUMBA_NUM_THREADS}")
+        numba.set_num_threads(args.threads)
+        jobs = prepare(load_scene(args.scene), args.spec, args.photons)
+        res = {job[0].name: phases(job, args.rounds) for job in jobs}
+    except (BenchError, SceneError, UnknownTechnique, OSError) as e:
+        print(f"pass_phases: {e}", file=sys.stderr)
+        return 2
+    finally:
+        numba.set_num_threads(before)
+    print(f"# {args.scene}, {args.spec}, {args.photons} photons, {args.threads} thread(s); "
+          f"wall ms, medians of rounds 2..{args.rounds}")
+    for name, row in res.items():
+        serial = sum(ms for n, ms in row if n == "serial")
+        print(f"{name:20s} " + "  ".join(f"{n} {ms:.3f}" for n, ms in row)
+              + f"  | serial {serial:.3f} of {sum(ms for _, ms in row):.3f}")
+    if args.json:
+        try:
+            with open(args.json, "w") as f:
+                json.dump(res, f, indent=1)
+        except OSError as e:
+            print(f"pass_phases: --json: {e}", file=sys.stderr)
+            return 2
     return 0
 
 
