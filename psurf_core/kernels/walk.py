@@ -17,6 +17,11 @@ Evaluate do:
     the hit's full path and the balance / power weight (:mod:`.mis`), where the technique is
     in an MIS set.
 
+A *staged* family (:attr:`~psurf_core.techniques.compiled.Compiled.staged`) has its walker
+call ``roots`` for a block of a span's rays first (up to :data:`STAGE_BLOCK`), keep the roots
+inside their ray's interval without a branch, then go on from ``accept`` for those: the same
+roots in the same order, so the same hits, in the same order, and the same image bits.
+
 ``G`` is the primitive's geometry record, read once per span. Hits go to one of three
 outputs: *full rows* (ray, primitive, ``s``, the hit record, value, weight, shadow statuses:
 what ``Hits`` and the UI need) when ``emit`` is set, else the weighted values added to a
@@ -28,6 +33,8 @@ source it inlines, :mod:`.cache`).
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..path_record import at_hit, photon_row
 from ..records import load, store
 from .jit import inline, kernel
@@ -37,6 +44,13 @@ from .vec import madd
 from .views import borrowed
 
 _WALKERS: dict = {}
+
+#: Rays whose roots a staged walker finds before it shades any (:attr:`Compiled.staged`): a
+#: span's rays (one image row's pixels) in blocks of this many. Blocks of 16 took 1.015x the
+#: cone and cylinder walks' CPU of 64 at 64x48 (one ray a pixel: a span is at most 64 rays);
+#: 256 and 1024 read as 64 there (0.98-1.00x) and keep the spans of larger images whole
+#: (docs/study.md, "Roots first").
+STAGE_BLOCK = 256
 
 
 @inline
@@ -65,7 +79,8 @@ def walker(fam, weight=None, key=None, one_origin=True):
 
 
 def _build(fam, weight, one_origin):
-    Geometry, n_roots = fam.geometry, fam.n_roots
+    Geometry, n_roots, staged = fam.geometry, fam.n_roots, fam.staged
+    block = STAGE_BLOCK  # captured: a cached walker is keyed by it (.cache)
     roots, accept, visibility = fam.roots, fam.accept, fam.visibility
     contribution, reconstruct = fam.contribution, fam.reconstruct
     mis = weight is not None
@@ -95,6 +110,9 @@ def _build(fam, weight, one_origin):
         # ``cached_solve``'s ``m0`` read for any origin, the ``planes`` walker took 1.15x the
         # CPU time, docs/study.md, "One origin for the plane walkers").
         o0 = (origin[0], origin[1], origin[2])
+        # A staged walk's roots of one block of rays, those inside their ray's interval.
+        keep_k = np.empty(block * n_roots if staged else 0, np.int64)
+        keep_s = np.empty(block * n_roots if staged else 0)
         i = i0
         while i < i1:
             # One primitive's spans are consecutive (one per image row): its geometry and,
@@ -108,19 +126,45 @@ def _build(fam, weight, one_origin):
                 # Which members can produce this photon's path, and their shares: the
                 # same for all of the primitive's hits.
                 shares = shares_of(base, params)
+            else:  # (unread: typed as anything)
+                base = shares = 0.0
             j_end = i + 1
             while j_end < i1 and s_prim[j_end] == p:
                 j_end += 1
             for i_span in range(i, j_end):
                 base_px = s_row[i_span] * width
-                for k in range(cs[base_px + s_c0[i_span]], cs[base_px + s_c1[i_span]]):
-                    ray = load(rt, k, RayRow)
-                    o = o0 if one_origin else ray.o
-                    rts = roots(G, o, ray.psi)
-                    for j in range(n_roots):
-                        s = rts[j]
-                        if not (s > ray.s_min and s < ray.s_max):  # NaN: no root
-                            continue
+                k, k1 = cs[base_px + s_c0[i_span]], cs[base_px + s_c1[i_span]]
+                while k < k1:
+                    if staged:
+                        # The roots of a block of the span's rays first, those inside their
+                        # ray's interval kept without a branch, then the kept ones shaded
+                        # (:attr:`Compiled.staged`).
+                        m = 0
+                        for kr in range(k, min(k + block, k1)):
+                            ray = load(rt, kr, RayRow)
+                            rts = roots(G, o0 if one_origin else ray.o, ray.psi)
+                            for j in range(n_roots):
+                                s = rts[j]
+                                keep_k[m] = kr
+                                keep_s[m] = s
+                                m += np.int64((s > ray.s_min) & (s < ray.s_max))
+                        k = min(k + block, k1)
+                    else:
+                        m = n_roots
+                        ray = load(rt, k, RayRow)
+                        rts = roots(G, o0 if one_origin else ray.o, ray.psi)
+                        k += 1
+                    for q in range(m):
+                        if staged:
+                            kr = keep_k[q]
+                            s = keep_s[q]
+                            ray = load(rt, kr, RayRow)
+                        else:
+                            kr = k - 1
+                            s = rts[q]
+                            if not (s > ray.s_min and s < ray.s_max):  # NaN: no root
+                                continue
+                        o = o0 if one_origin else ray.o
                         ok, hit = accept(G, o, ray.psi, s, short)
                         if not ok:
                             continue
@@ -140,7 +184,7 @@ def _build(fam, weight, one_origin):
                         if emit:
                             if n >= lim:  # cannot happen: lim is the candidates x roots bound
                                 raise RuntimeError("walker: output capacity exceeded")
-                            o_ray[n] = rid[k]
+                            o_ray[n] = rid[kr]
                             o_prim[n] = p
                             o_s[n] = s
                             store(o_hit, n, hit)
@@ -150,11 +194,11 @@ def _build(fam, weight, one_origin):
                             o_w[n] = w
                             n += 1
                         elif scal != 0.0 and to_img:
-                            r = rid[k]
+                            r = rid[kr]
                             for c in range(3):
                                 img[r, c] += (G.beta[c] * scal) * w
                         elif scal != 0.0:
-                            a_ray[na] = rid[k]
+                            a_ray[na] = rid[kr]
                             for c in range(3):
                                 a_val[na, c] = (G.beta[c] * scal) * w
                             na += 1

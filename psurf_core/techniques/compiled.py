@@ -37,6 +37,16 @@ class Compiled:
     one_origin : bool
         The walker reads the rays' common origin, not each ray's (a plane's cached camera
         solve gains; other families do not: :func:`psurf_core.kernels.walk.walker`).
+    staged : bool
+        The walker finds the roots of a block of rays first, keeps those inside their ray's
+        medium interval without a branch, then accepts and shades the kept ones
+        (:data:`psurf_core.kernels.walk.STAGE_BLOCK`). Where a pair's roots are a long
+        chain (a square root and divisions), the interval test's branch, unpredictable
+        (a quarter to two thirds of the pairs miss), kept the next pairs' roots waiting:
+        staged, the cone and cylinder walks take 0.87x the CPU, the spheres' 0.76-0.88x,
+        the disks' 0.91x. The plane families, whose roots are one cached division and
+        whose pairs end mostly in ``accept``, take 1.05-1.12x staged and are not
+        (docs/study.md, "Roots first").
     """
 
     geometry: type
@@ -51,3 +61,4 @@ class Compiled:
     density: object = None
     short_ratio: object = None
     one_origin: bool = False
+    staged: bool = False

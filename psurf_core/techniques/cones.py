@@ -272,7 +272,7 @@ class PhotonCone(Technique):
     family = "cones"
     min_k = 2
     compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
-                        segments, reconstruct, density, short_ratio)
+                        segments, reconstruct, density, short_ratio, staged=True)
 
     names = ("cone", "cone-short")
     grid = staticmethod(surface_grid)

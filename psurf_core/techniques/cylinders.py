@@ -208,7 +208,7 @@ class PhotonCylinder(Technique):
     family = "cylinders"
     min_k = 2
     compiled = Compiled(CylinderGeometry, CylinderHit, 2, roots, accept, visibility,
-                        contribution, segments, reconstruct, density)
+                        contribution, segments, reconstruct, density, staged=True)
 
     names = ("cylinder", "cylinder-short")
     grid = staticmethod(surface_grid)

@@ -167,7 +167,7 @@ class PhotonDisk(Technique):
     family = "disks"
     min_k = 2
     compiled = Compiled(DiskGeometry, DiskHit, 1, roots, accept, visibility, contribution,
-                        segments, reconstruct, density)
+                        segments, reconstruct, density, staged=True)
 
     names = ("disk", "disk-short")
     grid = staticmethod(surface_grid)

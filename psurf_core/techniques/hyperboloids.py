@@ -204,7 +204,7 @@ class Hyperboloid(Technique):
     family = "revolutions"
     min_k = 2
     compiled = Compiled(HyperboloidGeometry, RevolutionHit, 2, roots, accept, visibility,
-                        contribution, segments, reconstruct, density)
+                        contribution, segments, reconstruct, density, staged=True)
 
     names = ("hyperboloid", "hyperboloid-short")
     grid = staticmethod(surface_grid)

@@ -79,7 +79,7 @@ class SingleCone(SingleScatter):
     ``short`` restricts ``t* < T`` (track-length)."""
 
     compiled = Compiled(ConeGeometry, ConeHit, 2, roots, accept, visibility, contribution,
-                        segments, reconstruct, density)
+                        segments, reconstruct, density, staged=True)
 
     names = ("ss-cone", "ss-cone-short")
     grid = staticmethod(surface_grid)

@@ -163,7 +163,7 @@ class SingleDisk(SingleScatter):
     ``short`` restricts ``t* < T`` (track-length)."""
 
     compiled = Compiled(DiskGeometry, DiskHit, 1, roots, accept, visibility, contribution,
-                        segments, reconstruct, density)
+                        segments, reconstruct, density, staged=True)
 
     names = ("ss-disk", "ss-disk-short")
     grid = staticmethod(surface_grid)

@@ -133,7 +133,7 @@ class SingleSphere(SingleScatter):
     """``ss-sphere`` ``[cos th, ph]``: sphere (area/mesh: front hemisphere) of radius ``T``."""
 
     compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
-                        segments, reconstruct, density)
+                        segments, reconstruct, density, staged=True)
 
     names = ("ss-sphere", None)
     grid = staticmethod(surface_grid)

@@ -153,7 +153,7 @@ class PhotonSphere(Technique):
     family = "spheres"
     min_k = 2
     compiled = Compiled(SphereGeometry, SphereHit, 2, roots, accept, visibility, contribution,
-                        segments, reconstruct, density)
+                        segments, reconstruct, density, staged=True)
 
     names = ("sphere", None)
     grid = staticmethod(surface_grid)

@@ -233,7 +233,7 @@ class Torus(Technique):
     family = "revolutions"
     min_k = 2
     compiled = Compiled(TorusGeometry, RevolutionHit, 4, roots, accept, visibility,
-                        contribution, segments, reconstruct, density)
+                        contribution, segments, reconstruct, density, staged=True)
 
     names = ("torus", None)
     grid = staticmethod(surface_grid)
