@@ -149,11 +149,15 @@ def _build(fam, weight, one_origin):
                                 keep_s[m] = s
                                 m += np.int64((s > ray.s_min) & (s < ray.s_max))
                         k = min(k + block, k1)
-                    else:
+                    else:  # one ray's roots, tested below with a branch (the plane families)
                         m = n_roots
                         ray = load(rt, k, RayRow)
                         rts = roots(G, o0 if one_origin else ray.o, ray.psi)
                         k += 1
+                    # One body for both ways: ``staged`` is a constant of the closure, so numba
+                    # drops the other branch as it compiles. (The hit's work in an inline
+                    # function called from two loops took 1.58x the CPU: numba counts the
+                    # references of its array arguments at every call.)
                     for q in range(m):
                         if staged:
                             kr = keep_k[q]

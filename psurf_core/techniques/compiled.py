@@ -42,10 +42,11 @@ class Compiled:
         medium interval without a branch, then accepts and shades the kept ones
         (:data:`psurf_core.kernels.walk.STAGE_BLOCK`). Where a pair's roots are a long
         chain (a square root and divisions), the interval test's branch, unpredictable
-        (a quarter to two thirds of the pairs miss), kept the next pairs' roots waiting:
-        staged, the cone and cylinder walks take 0.87x the CPU, the spheres' 0.76-0.88x,
-        the disks' 0.91x. The plane families, whose roots are one cached division and
-        whose pairs end mostly in ``accept``, take 1.05-1.12x staged and are not
+        (a quarter of the cones' and cylinders' pairs miss), kept the next pairs' roots waiting:
+        staged, the cone and cylinder walks take 0.87x the CPU (``ss-cone`` 0.91x), the
+        spheres' 0.76x and 0.90x (``ss-sphere``), the disks' 0.92x, the hyperboloids'
+        0.97x, the tori's 0.99x. The plane families, whose roots are one cached division
+        and whose pairs end mostly in ``accept``, took 1.05-1.13x staged and are not
         (docs/study.md, "Roots first").
     """
 
