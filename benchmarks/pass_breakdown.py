@@ -365,6 +365,29 @@ def measure(args) -> dict:
     return res
 
 
+def check_args(args) -> None:
+    """Raise :class:`BenchError` unless ``args`` (``--rounds``, ``--photons``, ``--threads``)
+    can be run: at least 2 rounds (the first is cold), a photon, numba's thread range."""
+    if args.rounds < 2 or args.photons < 1:
+        raise BenchError("--rounds must be at least 2 (the first is cold) and --photons "
+                         "at least 1")
+    if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
+        raise BenchError(f"--threads must be 1..{numba.config.NUMBA_NUM_THREADS}")
+
+
+def write_json(path, res, prog: str) -> int:
+    """``res`` as JSON at ``path`` (None: nothing); the exit code: 0, or 2 (with one line on
+    stderr naming ``prog``) where it cannot be written."""
+    if path:
+        try:
+            with open(path, "w") as f:
+                json.dump(res, f, indent=1)
+        except OSError as e:
+            print(f"{prog}: --json: {e}", file=sys.stderr)
+            return 2
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scene")
@@ -383,11 +406,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     threads_before = numba.get_num_threads()
     try:
-        if args.rounds < 2 or args.photons < 1:
-            raise BenchError("--rounds must be at least 2 (the first is cold) and --photons "
-                             "at least 1")
-        if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
-            raise BenchError(f"--threads must be 1..{numba.config.NUMBA_NUM_THREADS}")
+        check_args(args)
         res = measure(args)
     except (BenchError, SceneError, UnknownTechnique, OSError) as e:
         print(f"pass_breakdown: {e}", file=sys.stderr)
@@ -395,14 +414,7 @@ def main(argv=None) -> int:
     finally:
         numba.set_num_threads(threads_before)
     report(res)
-    if args.json:
-        try:
-            with open(args.json, "w") as f:
-                json.dump(res, f, indent=1)
-        except OSError as e:
-            print(f"pass_breakdown: --json: {e}", file=sys.stderr)
-            return 2
-    return 0
+    return write_json(args.json, res, "pass_breakdown")
 
 
 if __name__ == "__main__":

@@ -18,7 +18,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import sys
@@ -28,7 +27,13 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import numba  # noqa: E402
 
-from benchmarks.pass_breakdown import BenchError, prepare, run_pass  # noqa: E402
+from benchmarks.pass_breakdown import (  # noqa: E402
+    BenchError,
+    check_args,
+    prepare,
+    run_pass,
+    write_json,
+)
 from psurf_core.kernels import fused, spans  # noqa: E402
 from psurf_core.scene import SceneError  # noqa: E402
 from psurf_core.scene_io import load_scene  # noqa: E402
@@ -82,11 +87,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     before = numba.get_num_threads()
     try:
-        if args.rounds < 2 or args.photons < 1:
-            raise BenchError("--rounds must be at least 2 (the first is cold) and --photons "
-                             "at least 1")
-        if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
-            raise BenchError(f"--threads must be 1..{numba.config.NUMBA_NUM_THREADS}")
+        check_args(args)
         numba.set_num_threads(args.threads)
         jobs = prepare(load_scene(args.scene), args.spec, args.photons)
         res = {job[0].name: phases(job, args.rounds) for job in jobs}
@@ -101,14 +102,7 @@ def main(argv=None) -> int:
         serial = sum(ms for n, ms in row if n == "serial")
         print(f"{name:20s} " + "  ".join(f"{n} {ms:.3f}" for n, ms in row)
               + f"  | serial {serial:.3f} of {sum(ms for _, ms in row):.3f}")
-    if args.json:
-        try:
-            with open(args.json, "w") as f:
-                json.dump(res, f, indent=1)
-        except OSError as e:
-            print(f"pass_phases: --json: {e}", file=sys.stderr)
-            return 2
-    return 0
+    return write_json(args.json, res, "pass_phases")
 
 
 if __name__ == "__main__":
