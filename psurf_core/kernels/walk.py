@@ -140,7 +140,8 @@ def _build(fam, weight, one_origin):
                         # ray's interval kept without a branch, then the kept ones shaded
                         # (:attr:`Compiled.staged`).
                         m = 0
-                        for kr in range(k, min(k + block, k1)):
+                        k_end = min(k + block, k1)
+                        for kr in range(k, k_end):
                             ray = load(rt, kr, RayRow)
                             rts = roots(G, o0 if one_origin else ray.o, ray.psi)
                             for j in range(n_roots):
@@ -148,7 +149,7 @@ def _build(fam, weight, one_origin):
                                 keep_k[m] = kr
                                 keep_s[m] = s
                                 m += np.int64((s > ray.s_min) & (s < ray.s_max))
-                        k = min(k + block, k1)
+                        k = k_end
                     else:  # one ray's roots, tested below with a branch (the plane families)
                         m = n_roots
                         ray = load(rt, k, RayRow)
