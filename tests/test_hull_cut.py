@@ -105,6 +105,38 @@ def test_spans_with_a_box_per_primitive_are_the_numpy_ones(inside):
     assert cut <= whole and len(cut) < 0.8 * len(whole)
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_hull_not_finite_gets_its_rectangle(bad):
+    """Some parallelograms with a vertex coordinate not finite (the rest finite): the compiled
+    spans are binning's, and each such primitive's spans are its whole screen rectangle's
+    rows, while the others keep their polygon's (fewer pixels than their rectangles)."""
+    scene = load_scene(ROOT / "scenes" / "study_medium.toml")
+    cam = replace(scene.camera, width=48, height=36)
+    rng = np.random.default_rng(4)
+    m = 300
+    org = rng.uniform(-0.9, 0.9, (m, 3))
+    a, b = 0.5 * rng.normal(size=(m, 3)), 0.5 * rng.normal(size=(m, 3))
+    hull = np.stack([org, org + a, org + a + b, org + b], axis=1)
+    med = (scene.medium.bounds_min, scene.medium.bounds_max)
+    lo, hi = np.maximum(hull.min(axis=1), med[0]), np.minimum(hull.max(axis=1), med[1])
+    odd = np.arange(0, m, 7)
+    hull[odd, rng.integers(0, 4, odd.size), rng.integers(0, 3, odd.size)] = bad
+    got = hull_spans(cam, lo, hi, hull, med)
+    x0, x1, y0, y1 = screen_rects(cam, lo, hi)
+    for g, w in zip(got, _spans(cam, x0, x1, y0, y1, hull, med, 1 << 20), strict=True):
+        np.testing.assert_array_equal(g, w)
+    prim, row, c0, c1 = got
+    live = odd[(x1[odd] > x0[odd]) & (y1[odd] > y0[odd])]
+    assert live.size > 20
+    for i in live:
+        k = prim == i
+        np.testing.assert_array_equal(row[k], np.arange(y0[i], y1[i]))
+        assert (c0[k] == x0[i]).all() and (c1[k] == x1[i]).all()
+    rest = np.setdiff1d(np.arange(m), odd)
+    area = ((x1 - x0) * (y1 - y0))[rest].sum()
+    assert (c1 - c0)[np.isin(prim, rest)].sum() < 0.8 * area
+
+
 def _box_samples(scene, rng, n):
     lo, hi = scene.medium.bounds_min, scene.medium.bounds_max
     return lo + (hi - lo) * rng.random((n, 3))
